@@ -1,0 +1,109 @@
+"""Anthropomorphic six-DOF arm (Klyuiko 1986, fig. 4): the paper's worked example.
+
+Joint chain (reproduces the paper's table, see ``docs/kinematics.md``): φ1 about +Z0 at the
+base; shoulder O1 at height l1 on the Z0 axis; φ2 (shoulder) and φ3 (elbow) about the local
++x axis; upper arm O1O2 (l2) and forearm O2O3 (l3) along the local +y axis; wrist centre O3
+at the forearm's end; wrist φ4 about +y (forearm roll), φ5 about +x, φ6 about +y (tool axis).
+At all-zero joints the arm points along +Y0, horizontally, and the gripper frame is aligned
+with the world frame:
+
+    R = Rz(φ1)·Rx(φ2 + φ3)·Ry(φ4)·Rx(φ5)·Ry(φ6)
+    O3 = (0, 0, l1) + Rz(φ1)·(0, l2 cos φ2 + l3 cos(φ2+φ3), l2 sin φ2 + l3 sin(φ2+φ3))
+
+Branches (8): shoulder front (φ1 = atan2(−x, y)) / back (φ1 + π, reaching over the base)
+× elbow up / down (elbow above / below the shoulder–wrist line) × wrist + / − (sign of φ5).
+With the wrist centre on the Z0 axis φ1 is free: it is set to 0 (front) and π (back).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from .arm import REVOLUTE, Arm
+from .rotations import homogeneous, rot_x, rot_z
+from .wrist import solve_with_wrist, wrist_rotation
+
+_DEG = np.pi / 180.0
+
+#: Reach tolerance: |cos φ3| up to 1 + this still counts as reachable (both elbow branches
+#: then coincide at the workspace boundary and stay valid).
+REACH_TOL = 1e-9
+#: Below this horizontal distance (m) the wrist centre is on the base axis.
+ON_AXIS_TOL = 1e-12
+
+
+@dataclass(frozen=True, eq=False)
+class AnthropomorphicArm(Arm):
+    """Revolute 6-DOF arm; defaults are the worked example's dimensions (mm → m)."""
+
+    name: ClassVar[str] = "anthropomorphic"
+    joint_names: ClassVar[tuple[str, ...]] = ("phi1", "phi2", "phi3", "phi4", "phi5", "phi6")
+    joint_types: ClassVar[tuple[str, ...]] = (REVOLUTE,) * 6
+    branch_labels: ClassVar[tuple[str, ...]] = tuple(
+        f"{shoulder}/elbow-{elbow}/wrist{wrist}"
+        for shoulder in ("front", "back")
+        for elbow in ("up", "down")
+        for wrist in ("+", "-")
+    )
+
+    #: Shoulder height O0O1 = l = 1300 mm (worked example).
+    l1: float = 1.300
+    #: Upper arm O1O2 = l2 = 1000 mm (worked example).
+    l2: float = 1.000
+    #: Forearm O2O3 = l3 = 1000 mm (worked example).
+    l3: float = 1.000
+    #: The paper gives no limits. Waist, elbow and the two roll joints use the full circle
+    #: (as on large gantry-fed arms such as the KUKA KR 1000 titan's A1/A4/A6 at ±180°-class
+    #: ranges); the shoulder may reach back over the base (the paper's φ1 + 180° family
+    #: needs φ2 up to ~−200°+360°); the wrist bend φ5 is limited to ±135°, a typical
+    #: industrial wrist pitch range that still admits the worked example's ±105.81°.
+    joint_limits: np.ndarray = (
+        (-np.pi, np.pi),
+        (-np.pi, np.pi),
+        (-170 * _DEG, 170 * _DEG),
+        (-np.pi, np.pi),
+        (-135 * _DEG, 135 * _DEG),
+        (-np.pi, np.pi),
+    )
+    #: Upper arm raised 30°, forearm level, wrist bent 45°: clear of the floor, no singularity.
+    home: np.ndarray = (0.0, 30 * _DEG, -30 * _DEG, 0.0, 45 * _DEG, 0.0)
+
+    def _check_parameters(self) -> None:
+        for label in ("l1", "l2", "l3"):
+            if getattr(self, label) <= 0.0:
+                raise ValueError(f"anthropomorphic: {label} must be positive")
+
+    def _fk(self, q: np.ndarray) -> np.ndarray:
+        phi1, phi2, phi3 = q[..., 0], q[..., 1], q[..., 2]
+        phi23 = phi2 + phi3
+        reach = self.l2 * np.cos(phi2) + self.l3 * np.cos(phi23)
+        height = self.l1 + self.l2 * np.sin(phi2) + self.l3 * np.sin(phi23)
+        position = np.stack([-reach * np.sin(phi1), reach * np.cos(phi1), height], -1)
+        rotation = rot_z(phi1) @ rot_x(phi23) @ wrist_rotation(q[..., 3], q[..., 4], q[..., 5])
+        return homogeneous(rotation, position)
+
+    def _ik_candidates(self, pose: np.ndarray) -> np.ndarray:
+        x, y, z = pose[..., 0, 3], pose[..., 1, 3], pose[..., 2, 3]
+        horizontal = np.hypot(x, y)
+        phi1_front = np.where(horizontal < ON_AXIS_TOL, 0.0, np.arctan2(-x, y))
+        phi1 = np.stack([phi1_front, phi1_front + np.pi], -1)  # (…, 2) shoulder
+        reach = np.stack([horizontal, -horizontal], -1)  # signed reach in the arm plane
+        height = (z - self.l1)[..., None]
+        cos3 = (reach**2 + height**2 - self.l2**2 - self.l3**2) / (2.0 * self.l2 * self.l3)
+        reachable = np.abs(cos3) <= 1.0 + REACH_TOL
+        cos3 = np.where(reachable, np.clip(cos3, -1.0, 1.0), np.nan)
+        bend = np.arccos(cos3)
+        # Elbow up is φ3 < 0 when reaching forward and φ3 > 0 when reaching back.
+        side = np.array([-1.0, 1.0])
+        phi3 = np.stack([side * bend, -side * bend], -1)  # (…, shoulder, elbow)
+        phi2 = np.arctan2(height, reach)[..., None] - np.arctan2(
+            self.l3 * np.sin(phi3), self.l2 + self.l3 * np.cos(phi3)
+        )
+        phi1 = np.broadcast_to(phi1[..., None], phi3.shape)
+        positioning = np.stack([phi1, phi2, phi3], -1).reshape((*phi3.shape[:-2], 4, 3))
+        r_positioning = rot_z(phi1) @ rot_x(phi2 + phi3)
+        r_positioning = r_positioning.reshape((*phi3.shape[:-2], 4, 3, 3))
+        return solve_with_wrist(positioning, r_positioning, pose[..., :3, :3])

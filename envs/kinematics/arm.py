@@ -1,0 +1,133 @@
+"""The common contract of every arm: parameters as frozen data, FK, all-branch IK.
+
+Subclasses supply the closed-form maths (``_fk``, ``_ik_candidates``); this base class owns
+input validation, angle wrapping, joint-limit checks and the NaN convention, so every arm
+answers bad input and unreachable poses the same way.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, fields
+from typing import ClassVar
+
+import numpy as np
+
+from .rotations import as_float_array, validate_pose, wrap_angle
+
+#: A branch counts as inside its joint limits up to this slack (rad or m), so a solution
+#: that lands on a limit within rounding is not thrown away. Values are never clamped.
+LIMIT_TOL = 1e-9
+
+REVOLUTE, PRISMATIC = "revolute", "prismatic"
+
+
+@dataclass(frozen=True, eq=False)
+class Arm(ABC):
+    """Base class: subclasses are frozen dataclasses whose fields are the arm's parameters.
+
+    Every subclass has the fields ``joint_limits`` ((dof, 2) lower/upper, rad or m) and
+    ``home`` ((dof,) configuration inside the limits), stored as read-only arrays.
+    """
+
+    name: ClassVar[str]
+    joint_names: ClassVar[tuple[str, ...]]
+    joint_types: ClassVar[tuple[str, ...]]
+    branch_labels: ClassVar[tuple[str, ...]]
+    #: "pose" arms read the whole (4, 4) target; "position" arms only its translation.
+    target: ClassVar[str] = "pose"
+
+    joint_limits: np.ndarray
+    home: np.ndarray
+
+    def __post_init__(self) -> None:
+        for field in fields(self):
+            if field.name in ("joint_limits", "home"):
+                continue
+            value = getattr(self, field.name)
+            if isinstance(value, (int, float)) and not np.isfinite(value):
+                raise ValueError(f"{self.name}: parameter {field.name} must be finite")
+        limits = as_float_array(self.joint_limits, f"{self.name} joint_limits").copy()
+        if limits.shape != (self.dof, 2):
+            raise ValueError(
+                f"{self.name}: joint_limits must have shape ({self.dof}, 2), got {limits.shape}"
+            )
+        if np.any(limits[:, 0] >= limits[:, 1]):
+            raise ValueError(f"{self.name}: every joint limit needs lower < upper")
+        revolute = self.revolute_mask
+        if np.any(np.abs(limits[revolute]) > np.pi + 1e-12):
+            # Branches are reported wrapped to [−π, π); wider ranges would make K ambiguous.
+            raise ValueError(f"{self.name}: revolute joint limits must lie within [-pi, pi]")
+        home = as_float_array(self.home, f"{self.name} home").copy()
+        if home.shape != (self.dof,):
+            raise ValueError(f"{self.name}: home must have shape ({self.dof},), got {home.shape}")
+        if np.any(home < limits[:, 0]) or np.any(home > limits[:, 1]):
+            raise ValueError(f"{self.name}: home configuration lies outside the joint limits")
+        limits.flags.writeable = False
+        home.flags.writeable = False
+        object.__setattr__(self, "joint_limits", limits)
+        object.__setattr__(self, "home", home)
+        self._check_parameters()
+
+    def _check_parameters(self) -> None:  # noqa: B027 (optional hook)
+        """Subclasses raise ``ValueError`` for impossible dimensions."""
+
+    # ----------------------------------------------------------------------------- contract
+    @property
+    def dof(self) -> int:
+        return len(self.joint_names)
+
+    @property
+    def n_branches(self) -> int:
+        return len(self.branch_labels)
+
+    @property
+    def revolute_mask(self) -> np.ndarray:
+        return np.array([kind == REVOLUTE for kind in self.joint_types])
+
+    def fk(self, q) -> np.ndarray:
+        """Pose (…, 4, 4) of the output frame for joint values ``q`` (…, dof)."""
+        q = as_float_array(q, "q")
+        if q.ndim < 1 or q.shape[-1] != self.dof:
+            raise ValueError(f"q must have shape (..., {self.dof}) for {self.name}, got {q.shape}")
+        return self._fk(q)
+
+    def ik(self, pose) -> tuple[np.ndarray, np.ndarray]:
+        """Every closed-form solution for ``pose`` (…, 4, 4).
+
+        Returns ``Q`` (…, K, dof) in the fixed order of ``branch_labels`` and ``ok`` (…, K):
+        a branch is valid when it exists and lies inside ``joint_limits``; invalid rows are
+        NaN. An unreachable pose is not an error: all its rows are invalid.
+        """
+        pose = self._validate_target(pose)
+        with np.errstate(invalid="ignore"):
+            candidates = self._ik_candidates(pose)
+            revolute = self.revolute_mask
+            candidates[..., revolute] = wrap_angle(candidates[..., revolute])
+            lower, upper = self.joint_limits[:, 0], self.joint_limits[:, 1]
+            inside = (candidates >= lower - LIMIT_TOL) & (candidates <= upper + LIMIT_TOL)
+        ok = np.all(inside, axis=-1)  # NaN compares False, so missing branches drop out
+        candidates[~ok] = np.nan
+        return candidates, ok
+
+    def within_limits(self, q) -> np.ndarray:
+        """(…,) bool: every joint of ``q`` (…, dof) inside its limits (with ``LIMIT_TOL``)."""
+        q = np.asarray(q, dtype=np.float64)
+        lower, upper = self.joint_limits[:, 0], self.joint_limits[:, 1]
+        return np.all((q >= lower - LIMIT_TOL) & (q <= upper + LIMIT_TOL), axis=-1)
+
+    # ------------------------------------------------------------------------ for subclasses
+    def _validate_target(self, pose) -> np.ndarray:
+        if self.target == "position":
+            pose = as_float_array(pose, "pose")
+            if pose.ndim < 2 or pose.shape[-2:] != (4, 4):
+                raise ValueError(f"pose must have shape (..., 4, 4), got {pose.shape}")
+            return pose
+        return validate_pose(pose)
+
+    @abstractmethod
+    def _fk(self, q: np.ndarray) -> np.ndarray: ...
+
+    @abstractmethod
+    def _ik_candidates(self, pose: np.ndarray) -> np.ndarray:
+        """(…, K, dof) raw candidates in branch order; NaN where a branch does not exist."""

@@ -1,0 +1,62 @@
+"""Four-DOF cylindrical industrial robot (Klyuiko 1986: RF-202M, PR-10I, SM40C401).
+
+The cylindrical arm of fig. 2 without the wrist joints B3, B4: a column slide s1, a turn
+φ1 about Z0, a radial slide s2 and one rotation φ2 about the arm axis y:
+
+    O = (−s2 sin φ1, s2 cos φ1, s1),   R = Rz(φ1)·Ry(φ2)
+
+Only poses whose tool axis y3 is horizontal and radial can be reached (the paper's
+constraints z01 = z03, n13/n11 = n23/n21 = −n31/n33, tan φ1 = −x01/y01 = −n12/n22 = n21/n11).
+A pose that breaks them by more than ``CONSTRAINT_TOL`` is unreachable: its single branch
+is invalid. Branches (1).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from .arm import PRISMATIC, REVOLUTE, Arm
+from .rotations import homogeneous, rot_y, rot_z
+
+_DEG = np.pi / 180.0
+
+#: Largest rotation-matrix entry error accepted for a pose this arm can realise.
+CONSTRAINT_TOL = 1e-9
+
+
+@dataclass(frozen=True, eq=False)
+class Cylindrical4Arm(Arm):
+    """Strokes of the PR-10I class of cylindrical pick-and-place robots (the paper names
+    the models but no dimensions): 0.3–1.0 m column, 0.3–1.0 m radial arm, ±170° turn,
+    gripper rotation full circle."""
+
+    name: ClassVar[str] = "cylindrical4"
+    joint_names: ClassVar[tuple[str, ...]] = ("s1", "phi1", "s2", "phi2")
+    joint_types: ClassVar[tuple[str, ...]] = (PRISMATIC, REVOLUTE, PRISMATIC, REVOLUTE)
+    branch_labels: ClassVar[tuple[str, ...]] = ("unique",)
+
+    joint_limits: np.ndarray = (
+        (0.3, 1.0),
+        (-170 * _DEG, 170 * _DEG),
+        (0.3, 1.0),
+        (-np.pi, np.pi),
+    )
+    home: np.ndarray = (0.6, 0.0, 0.5, 0.0)
+
+    def _fk(self, q: np.ndarray) -> np.ndarray:
+        phi1, radial = q[..., 1], q[..., 2]
+        position = np.stack([-radial * np.sin(phi1), radial * np.cos(phi1), q[..., 0]], -1)
+        return homogeneous(rot_z(phi1) @ rot_y(q[..., 3]), position)
+
+    def _ik_candidates(self, pose: np.ndarray) -> np.ndarray:
+        x, y, z = pose[..., 0, 3], pose[..., 1, 3], pose[..., 2, 3]
+        phi1 = np.arctan2(-x, y)
+        local = np.swapaxes(rot_z(phi1), -1, -2) @ pose[..., :3, :3]
+        phi2 = np.arctan2(local[..., 0, 2], local[..., 0, 0])  # the paper's atan(−n31/n33)
+        residual = np.max(np.abs(local - rot_y(phi2)), axis=(-1, -2))
+        q = np.stack([z, phi1, np.hypot(x, y), phi2], -1)
+        q = np.where((residual <= CONSTRAINT_TOL)[..., None], q, np.nan)
+        return q[..., None, :]
