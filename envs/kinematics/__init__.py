@@ -11,6 +11,7 @@ from .arm import LIMIT_TOL, Arm
 from .cartesian import CartesianArm
 from .cylindrical import CylindricalArm
 from .cylindrical4 import Cylindrical4Arm
+from .frames import frenet_pose, frenet_rotation, pose_from_points
 from .spherical import SphericalArm
 
 _ARM_CLASSES: dict[str, type[Arm]] = {
@@ -39,4 +40,12 @@ def make_arm(name: str, **params) -> Arm:
         raise ValueError(f"bad parameters for arm {name!r}: {exc}") from None
 
 
-__all__ = ["ARM_NAMES", "LIMIT_TOL", "Arm", "make_arm"]
+__all__ = [
+    "ARM_NAMES",
+    "LIMIT_TOL",
+    "Arm",
+    "frenet_pose",
+    "frenet_rotation",
+    "make_arm",
+    "pose_from_points",
+]

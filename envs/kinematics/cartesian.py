@@ -47,6 +47,4 @@ class CartesianArm(Arm):
         return homogeneous(wrist_rotation(q[..., 3], q[..., 4], q[..., 5]), q[..., :3])
 
     def _ik_candidates(self, pose: np.ndarray) -> np.ndarray:
-        positioning = pose[..., None, :3, 3]
-        r_positioning = np.broadcast_to(np.eye(3), (*positioning.shape[:-1], 3, 3))
-        return solve_with_wrist(positioning, r_positioning, pose[..., :3, :3])
+        return solve_with_wrist(pose[..., None, :3, 3], pose[..., None, :3, :3])

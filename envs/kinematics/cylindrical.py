@@ -17,7 +17,7 @@ from typing import ClassVar
 import numpy as np
 
 from .arm import PRISMATIC, REVOLUTE, Arm
-from .rotations import homogeneous, rot_z
+from .rotations import homogeneous, premultiply_rotation, rot_z
 from .wrist import solve_with_wrist, wrist_rotation
 
 _DEG = np.pi / 180.0
@@ -55,5 +55,6 @@ class CylindricalArm(Arm):
     def _ik_candidates(self, pose: np.ndarray) -> np.ndarray:
         x, y, z = pose[..., 0, 3], pose[..., 1, 3], pose[..., 2, 3]
         phi1 = np.arctan2(-x, y)
-        positioning = np.stack([z, phi1, np.hypot(x, y)], -1)[..., None, :]
-        return solve_with_wrist(positioning, rot_z(phi1)[..., None, :, :], pose[..., :3, :3])
+        positioning = np.stack([z, phi1, np.sqrt(x * x + y * y)], -1)[..., None, :]
+        r_wrist = premultiply_rotation(-phi1, pose[..., :3, :3], axis=2)
+        return solve_with_wrist(positioning, r_wrist[..., None, :, :])

@@ -12,34 +12,49 @@ import numpy as np
 ORTHONORMAL_TOL = 1e-6
 
 
-def rot_x(angle: np.ndarray) -> np.ndarray:
+def _elementary(angle, axis: int) -> np.ndarray:
+    angle = np.asarray(angle, dtype=np.float64)
+    c, s = np.cos(angle), np.sin(angle)
+    i, j = [(1, 2), (2, 0), (0, 1)][axis]
+    out = np.zeros((*angle.shape, 3, 3))
+    out[..., axis, axis] = 1.0
+    out[..., i, i] = c
+    out[..., j, j] = c
+    out[..., i, j] = -s
+    out[..., j, i] = s
+    return out
+
+
+def rot_x(angle) -> np.ndarray:
     """Rotation about x by ``angle`` (…,) -> (…, 3, 3)."""
-    c, s = np.cos(angle), np.sin(angle)
-    one, zero = np.ones_like(c), np.zeros_like(c)
-    return np.stack(
-        [np.stack([one, zero, zero], -1), np.stack([zero, c, -s], -1), np.stack([zero, s, c], -1)],
-        -2,
-    )
+    return _elementary(angle, 0)
 
 
-def rot_y(angle: np.ndarray) -> np.ndarray:
+def rot_y(angle) -> np.ndarray:
     """Rotation about y by ``angle`` (…,) -> (…, 3, 3)."""
-    c, s = np.cos(angle), np.sin(angle)
-    one, zero = np.ones_like(c), np.zeros_like(c)
-    return np.stack(
-        [np.stack([c, zero, s], -1), np.stack([zero, one, zero], -1), np.stack([-s, zero, c], -1)],
-        -2,
-    )
+    return _elementary(angle, 1)
 
 
-def rot_z(angle: np.ndarray) -> np.ndarray:
+def rot_z(angle) -> np.ndarray:
     """Rotation about z by ``angle`` (…,) -> (…, 3, 3)."""
-    c, s = np.cos(angle), np.sin(angle)
-    one, zero = np.ones_like(c), np.zeros_like(c)
-    return np.stack(
-        [np.stack([c, -s, zero], -1), np.stack([s, c, zero], -1), np.stack([zero, zero, one], -1)],
-        -2,
-    )
+    return _elementary(angle, 2)
+
+
+def premultiply_rotation(angle, rotation: np.ndarray, axis: int) -> np.ndarray:
+    """R_axis(angle)·rotation for (…,) angles and (…, 3, 3) rotations, broadcast.
+
+    Works on rows instead of building the elementary matrix and calling matmul, which is
+    several times faster for large batches of 3 × 3 products.
+    """
+    angle = np.asarray(angle, dtype=np.float64)
+    c, s = np.cos(angle)[..., None], np.sin(angle)[..., None]
+    i, j = [(1, 2), (2, 0), (0, 1)][axis]
+    shape = np.broadcast_shapes((*angle.shape, 3, 3), rotation.shape)
+    out = np.empty(shape)
+    out[..., axis, :] = rotation[..., axis, :]
+    out[..., i, :] = c * rotation[..., i, :] - s * rotation[..., j, :]
+    out[..., j, :] = s * rotation[..., i, :] + c * rotation[..., j, :]
+    return out
 
 
 def homogeneous(rotation: np.ndarray, translation: np.ndarray) -> np.ndarray:
@@ -54,7 +69,8 @@ def homogeneous(rotation: np.ndarray, translation: np.ndarray) -> np.ndarray:
 
 def wrap_angle(angle: np.ndarray) -> np.ndarray:
     """Wrap to [−π, π) (the paper's table writes a half turn as −180°)."""
-    return np.remainder(angle + np.pi, 2.0 * np.pi) - np.pi
+    # floor instead of np.remainder: the same result, several times faster on big batches.
+    return angle - (2.0 * np.pi) * np.floor((angle + np.pi) / (2.0 * np.pi))
 
 
 def as_float_array(value, name: str) -> np.ndarray:
@@ -77,14 +93,27 @@ def validate_pose(pose, name: str = "pose") -> np.ndarray:
     pose = as_float_array(pose, name)
     if pose.ndim < 2 or pose.shape[-2:] != (4, 4):
         raise ValueError(f"{name} must have shape (..., 4, 4), got {pose.shape}")
-    if np.any(np.abs(pose[..., 3, :] - (0.0, 0.0, 0.0, 1.0)) > ORTHONORMAL_TOL):
-        raise ValueError(f"{name} bottom row must be (0, 0, 0, 1)")
-    rotation = pose[..., :3, :3]
-    gram = np.einsum("...ki,...kj->...ij", rotation, rotation)
-    if np.any(np.abs(gram - np.eye(3)) > ORTHONORMAL_TOL):
+    validate_rotation(pose[..., :3, :3], name)
+    return pose
+
+
+def validate_rotation(rotation: np.ndarray, name: str = "rotation") -> None:
+    """``ValueError`` unless every (…, 3, 3) block is a proper rotation (``ORTHONORMAL_TOL``).
+
+    The bottom row of a pose is not read: the kinematics never use it.
+    """
+    x, y, z = rotation[..., 0], rotation[..., 1], rotation[..., 2]
+    if not all(
+        np.all(np.abs(_dot(u, v) - expected) <= ORTHONORMAL_TOL)
+        for u, v, expected in ((x, x, 1), (y, y, 1), (z, z, 1), (x, y, 0), (y, z, 0), (z, x, 0))
+    ):
         raise ValueError(
             f"{name} rotation block is not orthonormal (tolerance {ORTHONORMAL_TOL:g})"
         )
-    if np.any(np.linalg.det(rotation) < 0.0):
+    if np.any(_dot(np.cross(x, y), z) < 0.0):
         raise ValueError(f"{name} rotation block is a reflection (det < 0), not a rotation")
-    return pose
+
+
+def _dot(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    # Spelled out: a reduction over a length-3 axis is slow in numpy for big batches.
+    return u[..., 0] * v[..., 0] + u[..., 1] * v[..., 1] + u[..., 2] * v[..., 2]

@@ -19,7 +19,7 @@ from typing import ClassVar
 import numpy as np
 
 from .arm import PRISMATIC, REVOLUTE, Arm
-from .rotations import homogeneous, rot_x, rot_z
+from .rotations import homogeneous, premultiply_rotation, rot_x, rot_z
 from .wrist import solve_with_wrist, wrist_rotation
 
 _DEG = np.pi / 180.0
@@ -74,5 +74,6 @@ class SphericalArm(Arm):
         reach, height = np.hypot(x, y), z - self.l1
         phi2 = np.arctan2(height, reach)
         positioning = np.stack([phi1, phi2, np.hypot(reach, height)], -1)[..., None, :]
-        r_positioning = (rot_z(phi1) @ rot_x(phi2))[..., None, :, :]
-        return solve_with_wrist(positioning, r_positioning, pose[..., :3, :3])
+        turned = premultiply_rotation(-phi1, pose[..., :3, :3], axis=2)
+        r_wrist = premultiply_rotation(-phi2, turned, axis=0)
+        return solve_with_wrist(positioning, r_wrist[..., None, :, :])

@@ -12,19 +12,21 @@ second branch is (a + π, −b, c + π). c is not read from row 1 but from what 
 Ry(a) is known, c = atan2(M02, M00) with M = Ry(−a)·R_w, which keeps FK exact even when
 sin b is tiny and a is poorly conditioned.
 
-Singularity (sin b < ``WRIST_SINGULAR_TOL``): only a ± c is defined. The free angle is split
-evenly, a = θ/2 (θ = a + c at b = 0, θ = a − c at b = π), which keeps both joints within
-±π/2 of zero; both flip branches then coincide and both are returned as valid.
+Singularity (sin b < ``WRIST_SINGULAR_TOL``): only a ± c is defined. b is snapped to 0 or
+±π (an error below the tolerance) and the free angle is split evenly, a = θ/2 (θ = a + c at
+b = 0, θ = a − c at b = π), which keeps both joints within ±π/2 of zero; the two flip
+branches then describe the same configuration and both are returned as valid.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .rotations import rot_x, rot_y, wrap_angle
+from .rotations import rot_x, rot_y
 
 #: Below this |sin b| the wrist is treated as singular and the free angle split evenly.
-WRIST_SINGULAR_TOL = 1e-10
+#: Above it a is ill-conditioned but harmless: c is solved from a, so FK stays exact.
+WRIST_SINGULAR_TOL = 1e-12
 
 
 def wrist_rotation(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
@@ -35,41 +37,65 @@ def wrist_rotation(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
 def solve_yxy_wrist(r_wrist: np.ndarray) -> np.ndarray:
     """All solutions of Ry(a)Rx(b)Ry(c) = ``r_wrist`` (…, 3, 3).
 
-    Returns (…, 2, 3): row 0 has b ≥ 0 ("wrist +"), row 1 b ≤ 0 ("wrist −"); angles
-    wrapped to [−π, π). Always finite for a finite rotation.
+    Returns (…, 2, 3): row 0 has b ≥ 0 ("wrist +"), row 1 b ≤ 0 ("wrist −"); angles in
+    [−π, π] (the arm wraps them to [−π, π)). Always finite for a finite rotation.
     """
-    r00, r01, r02 = r_wrist[..., 0, 0], r_wrist[..., 0, 1], r_wrist[..., 0, 2]
-    r11 = r_wrist[..., 1, 1]
-    r20, r21, r22 = r_wrist[..., 2, 0], r_wrist[..., 2, 1], r_wrist[..., 2, 2]
-    sin_b = np.hypot(r01, r21)
+    return np.stack(wrist_branches(*_wrist_entries(r_wrist)), axis=-1)
+
+
+def wrist_branches(r00, r01, r02, r11, r20, r21, r22) -> tuple[np.ndarray, ...]:
+    """``solve_yxy_wrist`` from the seven entries of R_w it reads, each a (…,) array.
+
+    Returns the columns (a, b, c), each (…, 2) with the + branch first. Entries in and
+    columns out let callers keep every array contiguous: on big batches strided slices of
+    (…, 3, 3) stacks cost more than the arithmetic.
+    """
+    sin_b = np.sqrt(r01 * r01 + r21 * r21)  # entries are bounded by 1: no need for hypot
     b = np.arctan2(sin_b, r11)
-    singular = sin_b < WRIST_SINGULAR_TOL
     a = np.arctan2(r01, r21)
+    singular = sin_b < WRIST_SINGULAR_TOL
+    shift = np.pi
     if np.any(singular):
         # cos b = ±1 here: a ± c = atan2(±R02, R00); split the free angle evenly.
-        sign = np.where(r11 >= 0.0, 1.0, -1.0)
-        a = np.where(singular, 0.5 * np.arctan2(sign * r02, r00), a)
-    ca, sa = np.cos(a), np.sin(a)
+        folded = r11 < 0.0
+        a = np.where(singular, 0.5 * np.arctan2(np.where(folded, -r02, r02), r00), a)
+        b = np.where(singular, np.where(folded, np.pi, 0.0), b)
+        ca, sa = np.cos(a), np.sin(a)
+        shift = np.where(singular, 0.0, np.pi)  # the flipped branch is the same configuration
+    else:
+        # (cos a, sin a) is column 1's (R21, R01) normalised: no trigonometry needed.
+        ca, sa = r21 / sin_b, r01 / sin_b
     c = np.arctan2(ca * r02 - sa * r22, ca * r00 - sa * r20)
-    flipped_a = np.where(singular, a, wrap_angle(a + np.pi))
-    flipped_b = np.where(singular, b, -b)
-    flipped_c = np.where(singular, c, wrap_angle(c + np.pi))
-    return np.stack(
-        [np.stack([a, b, c], -1), np.stack([flipped_a, flipped_b, flipped_c], -1)], -2
+    # The flipped branch is (a + π, −b, c + π), kept inside [−π, π].
+    flipped_a = np.where(a > 0.0, a - shift, a + shift)
+    flipped_c = np.where(c > 0.0, c - shift, c + shift)
+    return (
+        np.stack([a, flipped_a], axis=-1),
+        np.stack([b, -b], axis=-1),
+        np.stack([c, flipped_c], axis=-1),
     )
 
 
-def solve_with_wrist(
-    positioning: np.ndarray, r_positioning: np.ndarray, rotation: np.ndarray
-) -> np.ndarray:
+def solve_with_wrist(positioning: np.ndarray, r_wrist: np.ndarray) -> list[np.ndarray]:
     """Complete positioning solutions with both wrist branches.
 
-    ``positioning`` (…, P, 3) joint values of the positioning part, ``r_positioning``
-    (…, P, 3, 3) the rotation they produce, ``rotation`` (…, 3, 3) the target orientation.
-    Returns (…, 2P, 6): for each positioning solution, wrist + then wrist −.
+    ``positioning`` (…, P, 3) joint values of the positioning part and ``r_wrist``
+    (…, P, 3, 3) the rotation the wrist must realise for each, R_posᵀ·R. Returns the six
+    joint columns, each (…, 2P): for each positioning solution, wrist + then wrist −.
     """
-    r_wrist = np.swapaxes(r_positioning, -1, -2) @ rotation[..., None, :, :]
-    wrist = solve_yxy_wrist(r_wrist)  # (…, P, 2, 3)
-    positioning = np.broadcast_to(positioning[..., None, :], wrist.shape)
-    both = np.concatenate([positioning, wrist], axis=-1)  # (…, P, 2, 6)
-    return both.reshape((*both.shape[:-3], -1, 6))
+    return with_positioning(
+        [positioning[..., j] for j in range(3)], wrist_branches(*_wrist_entries(r_wrist))
+    )
+
+
+def with_positioning(positioning, wrist) -> list[np.ndarray]:
+    """Columns of (…, P) positioning joints and (…, P, 2) wrist joints -> six (…, 2P) columns."""
+    columns = [np.repeat(column, 2, axis=-1) for column in positioning]
+    columns += [column.reshape((*column.shape[:-2], -1)) for column in wrist]
+    return columns
+
+
+def _wrist_entries(r_wrist: np.ndarray) -> tuple[np.ndarray, ...]:
+    return tuple(
+        r_wrist[..., i, j] for i, j in ((0, 0), (0, 1), (0, 2), (1, 1), (2, 0), (2, 1), (2, 2))
+    )

@@ -1,0 +1,149 @@
+"""The kinematics contract, checked for every registered arm."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from envs.kinematics import ARM_NAMES, make_arm
+from envs.kinematics.arm import PRISMATIC, REVOLUTE
+
+N_CONFIGS = 1000
+FK_TOL = 1e-9
+
+
+def sample_configurations(arm, n, seed):
+    rng = np.random.default_rng(seed)
+    lower, upper = arm.joint_limits[:, 0], arm.joint_limits[:, 1]
+    return rng.uniform(lower, upper, size=(n, arm.dof))
+
+
+def joint_distance(arm, q_a, q_b):
+    """Largest per-joint distance, revolute joints compared modulo 2π."""
+    delta = np.abs(q_a - q_b)
+    revolute = arm.revolute_mask
+    delta[..., revolute] = np.abs(np.remainder(delta[..., revolute] + np.pi, 2 * np.pi) - np.pi)
+    return delta.max(axis=-1)
+
+
+def compared_part(arm, pose):
+    """Position-only arms are judged on the translation, the others on the whole pose."""
+    return pose[..., :3, 3] if arm.target == "position" else pose
+
+
+@pytest.fixture(params=ARM_NAMES)
+def arm(request):
+    return make_arm(request.param)
+
+
+def test_registry_is_complete_and_ordered():
+    assert set(ARM_NAMES) >= {
+        "cartesian", "cylindrical", "spherical", "anthropomorphic", "cylindrical4",
+    }
+    assert len(set(ARM_NAMES)) == len(ARM_NAMES)
+
+
+def test_unknown_arm_and_bad_parameters_are_value_errors():
+    with pytest.raises(ValueError, match="unknown arm"):
+        make_arm("scara")
+    with pytest.raises(ValueError, match="bad parameters"):
+        make_arm("anthropomorphic", wingspan=3.0)
+    with pytest.raises(ValueError, match="l2 must be positive"):
+        make_arm("anthropomorphic", l2=-1.0)
+    with pytest.raises(ValueError, match="lower < upper"):
+        make_arm("cartesian", joint_limits=[[1, 0]] * 6)
+    with pytest.raises(ValueError, match=r"within \[-pi, pi\]"):
+        make_arm("anthropomorphic", joint_limits=[[-4, 4]] * 6)
+    with pytest.raises(ValueError, match="home configuration lies outside"):
+        make_arm("anthropomorphic", home=[0, 0, 0, 0, 3.0, 0])
+
+
+def test_contract_attributes(arm):
+    assert arm.dof == len(arm.joint_names) == len(arm.joint_types)
+    assert set(arm.joint_types) <= {REVOLUTE, PRISMATIC}
+    assert arm.joint_limits.shape == (arm.dof, 2)
+    assert arm.n_branches == len(arm.branch_labels) == len(set(arm.branch_labels))
+    assert arm.home.shape == (arm.dof,)
+    assert arm.within_limits(arm.home)
+    assert not arm.joint_limits.flags.writeable, "parameters are frozen data"
+    pose = arm.fk(arm.home)
+    assert pose.shape == (4, 4) and np.all(np.isfinite(pose))
+
+
+def test_round_trip_on_random_configurations(arm):
+    q = sample_configurations(arm, N_CONFIGS, seed=20260)
+    pose = arm.fk(q)
+    solutions, valid = arm.ik(pose)
+    assert solutions.shape == (N_CONFIGS, arm.n_branches, arm.dof)
+    assert valid.shape == (N_CONFIGS, arm.n_branches)
+    # Every valid branch reproduces the pose, every invalid row is NaN.
+    assert np.all(np.isnan(solutions[~valid]))
+    assert np.all(np.isfinite(solutions[valid]))
+    reposed = arm.fk(np.where(valid[..., None], solutions, 0.0))
+    error = np.abs(compared_part(arm, reposed) - compared_part(arm, pose)[:, None])
+    assert error[valid].max() < FK_TOL
+    # The configuration we started from is one of the valid branches.
+    distance = joint_distance(arm, solutions, q[:, None, :])
+    distance = np.where(valid, distance, np.inf)
+    assert np.all(distance.min(axis=1) < 1e-7)
+    # Valid branches are inside the limits.
+    assert np.all(arm.within_limits(solutions[valid]))
+
+
+def test_batch_shapes_broadcast(arm):
+    q = sample_configurations(arm, 6, seed=3).reshape(2, 3, arm.dof)
+    pose = arm.fk(q)
+    assert pose.shape == (2, 3, 4, 4)
+    solutions, valid = arm.ik(pose)
+    assert solutions.shape == (2, 3, arm.n_branches, arm.dof)
+    single, single_valid = arm.ik(pose[1, 2])
+    np.testing.assert_array_equal(single, solutions[1, 2])
+    np.testing.assert_array_equal(single_valid, valid[1, 2])
+
+
+def test_ik_is_deterministic(arm):
+    pose = arm.fk(sample_configurations(arm, 50, seed=5))
+    first, second = arm.ik(pose), arm.ik(pose.copy())
+    np.testing.assert_array_equal(first[0], second[0])
+    np.testing.assert_array_equal(first[1], second[1])
+
+
+def test_bad_input_is_a_value_error(arm):
+    pose = arm.fk(arm.home)
+    with pytest.raises(ValueError, match="NaN or inf"):
+        arm.ik(np.where(np.eye(4, dtype=bool), np.nan, pose))
+    with pytest.raises(ValueError, match="NaN or inf"):
+        arm.fk(np.full(arm.dof, np.inf))
+    with pytest.raises(ValueError, match="shape"):
+        arm.ik(pose[:3])
+    with pytest.raises(ValueError, match="shape"):
+        arm.fk(np.zeros(arm.dof + 1))
+    with pytest.raises(ValueError, match="numeric"):
+        arm.fk(["a"] * arm.dof)
+    if arm.target == "pose":
+        skewed = pose.copy()
+        skewed[:3, :3] *= 1.01
+        with pytest.raises(ValueError, match="not orthonormal"):
+            arm.ik(skewed)
+        mirrored = pose.copy()
+        mirrored[:3, 0] *= -1.0
+        with pytest.raises(ValueError, match="reflection"):
+            arm.ik(mirrored)
+
+
+def test_unreachable_pose_is_all_invalid_without_warnings(arm):
+    pose = arm.fk(arm.home)
+    pose[:3, 3] += 100.0  # far beyond every arm's reach
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        solutions, valid = arm.ik(pose)
+    assert not valid.any()
+    assert np.all(np.isnan(solutions))
+
+
+def test_revolute_branches_are_wrapped(arm):
+    solutions, valid = arm.ik(arm.fk(sample_configurations(arm, 200, seed=9)))
+    revolute = solutions[..., arm.revolute_mask][valid]
+    assert np.all(revolute >= -np.pi) and np.all(revolute < np.pi)
