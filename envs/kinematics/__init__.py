@@ -12,6 +12,7 @@ from .cartesian import CartesianArm
 from .cylindrical import CylindricalArm
 from .cylindrical4 import Cylindrical4Arm
 from .frames import frenet_pose, frenet_rotation, pose_from_points
+from .rod import RodMechanism
 from .spherical import SphericalArm
 
 _ARM_CLASSES: dict[str, type[Arm]] = {
@@ -22,6 +23,7 @@ _ARM_CLASSES: dict[str, type[Arm]] = {
         SphericalArm,
         AnthropomorphicArm,
         Cylindrical4Arm,
+        RodMechanism,
     )
 }
 
