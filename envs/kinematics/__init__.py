@@ -11,6 +11,7 @@ from .arm import LIMIT_TOL, Arm
 from .cartesian import CartesianArm
 from .cylindrical import CylindricalArm
 from .cylindrical4 import Cylindrical4Arm
+from .dual import DualPprPrrArm, DualRrpRppArm, DualRrrPppArm
 from .frames import frenet_pose, frenet_rotation, pose_from_points
 from .rod import RodMechanism
 from .spherical import SphericalArm
@@ -23,6 +24,9 @@ _ARM_CLASSES: dict[str, type[Arm]] = {
         SphericalArm,
         AnthropomorphicArm,
         Cylindrical4Arm,
+        DualRrpRppArm,
+        DualRrrPppArm,
+        DualPprPrrArm,
         RodMechanism,
     )
 }

@@ -7,13 +7,21 @@ answers bad input and unreachable poses the same way.
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, fields
+from functools import cached_property
 from typing import ClassVar
 
 import numpy as np
 
-from .rotations import ORTHONORMAL_TOL, as_float_array, validate_rotation, wrap_angle
+from .rotations import (
+    ORTHONORMAL_TOL,
+    as_float_array,
+    validate_rotation,
+    validate_rotation_scalar,
+    wrap_angle,
+)
 
 #: A branch counts as inside its joint limits up to this slack (rad or m), so a solution
 #: that lands on a limit within rounding is not thrown away. Values are never clamped.
@@ -102,6 +110,13 @@ class Arm(ABC):
         a branch is valid when it exists and lies inside ``joint_limits``; invalid rows are
         NaN. An unreachable pose is not an error: all its rows are invalid.
         """
+        if (
+            type(pose) is np.ndarray
+            and pose.shape == (4, 4)
+            and pose.dtype.kind in "fiu"
+            and self._has_single_path
+        ):
+            return self._ik_one(pose)
         pose = as_float_array(pose, "pose")
         if pose.ndim < 2 or pose.shape[-2:] != (4, 4):
             raise ValueError(f"pose must have shape (..., 4, 4), got {pose.shape}")
@@ -121,6 +136,60 @@ class Arm(ABC):
             )
         shape = (*batch_shape, self.n_branches)
         return candidates.reshape((*shape, self.dof)), ok.reshape(shape)
+
+    def _ik_one(self, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """One (4, 4) array through ``_ik_single``: the same checks, in Python floats."""
+        m = pose.tolist()
+        if not all(map(math.isfinite, (*m[0], *m[1], *m[2], *m[3]))):
+            raise ValueError("pose contains NaN or inf")
+        bottom = m[3]
+        if (abs(bottom[0]) > ORTHONORMAL_TOL or abs(bottom[1]) > ORTHONORMAL_TOL
+                or abs(bottom[2]) > ORTHONORMAL_TOL or abs(bottom[3] - 1.0) > ORTHONORMAL_TOL):
+            raise ValueError("pose bottom row must be (0, 0, 0, 1)")
+        if self.target == "pose":
+            validate_rotation_scalar(m, "pose")
+        rows, ok = [], []
+        limits, revolute = self._checked_limits, self._revolute_joints
+        for row in self._ik_single(m):
+            valid = row is not None
+            if valid:
+                for joint in revolute:
+                    if row[joint] >= math.pi:  # the one value of [−π, π] outside [−π, π)
+                        row[joint] -= 2.0 * math.pi
+                for joint, lower, upper in limits:
+                    if not lower - LIMIT_TOL <= row[joint] <= upper + LIMIT_TOL:
+                        valid = False
+                        break
+            rows.append(row if valid else self._nan_row)
+            ok.append(valid)
+        return np.array(rows), np.array(ok)
+
+    @cached_property
+    def _has_single_path(self) -> bool:
+        return type(self)._ik_single is not Arm._ik_single
+
+    @cached_property
+    def _revolute_joints(self) -> tuple[int, ...]:
+        return tuple(int(joint) for joint in np.flatnonzero(self.revolute_mask))
+
+    @cached_property
+    def _checked_limits(self) -> tuple[tuple[int, float, float], ...]:
+        """(joint, lower, upper) of every joint whose range a wrapped value can leave."""
+        return tuple(
+            (joint, float(lower), float(upper))
+            for joint, (lower, upper) in enumerate(self.joint_limits)
+            if not (self.joint_types[joint] == REVOLUTE and lower <= -np.pi and upper >= np.pi)
+        )
+
+    @cached_property
+    def _nan_row(self) -> tuple[float, ...]:
+        return (math.nan,) * self.dof
+
+    def _ik_single(self, m: list[list[float]]) -> list[list[float] | None]:
+        """Optional fast path for one pose (``m`` its nested list): the K raw rows as lists,
+        revolute values in [−π, π], None where a branch does not exist. Arms that define it
+        must agree with ``_ik_candidates`` (tests compare the two)."""
+        raise NotImplementedError
 
     def _checked_candidates(self, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         with np.errstate(invalid="ignore"):

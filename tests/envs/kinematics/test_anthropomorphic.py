@@ -96,3 +96,36 @@ def test_configuration_on_a_joint_limit_stays_valid(joint, side):
     solutions, valid = ARM.ik(ARM.fk(q))
     gap = np.abs(np.remainder(solutions - q + np.pi, 2 * np.pi) - np.pi).max(axis=-1)
     assert np.nanmin(np.where(valid, gap, np.nan)) < 1e-7
+
+
+def degenerate_and_random_poses():
+    rng = np.random.default_rng(21)
+    q = rng.uniform(ARM.joint_limits[:, 0], ARM.joint_limits[:, 1], (300, 6))
+    q[:20, 4] = 0.0  # wrist singular
+    q[20:40, 2] = 0.0  # stretched elbow: workspace boundary
+    poses = ARM.fk(q)
+    on_axis = homogeneous(rot_z(0.3) @ rot_x(-0.4), np.array([0.0, 0.0, ARM.l1 + 1.2]))
+    far = ARM.fk(ARM.home)
+    far[:3, 3] = (5.0, 0.0, 0.0)
+    return np.concatenate([poses, on_axis[None], far[None]])
+
+
+def test_single_pose_fast_path_agrees_with_the_batched_solver():
+    poses = degenerate_and_random_poses()
+    batch_q, batch_ok = ARM.ik(poses)
+    for pose, expected_q, expected_ok in zip(poses, batch_q, batch_ok, strict=True):
+        q, ok = ARM.ik(pose)
+        np.testing.assert_array_equal(ok, expected_ok)
+        np.testing.assert_allclose(q, expected_q, rtol=0, atol=1e-12)
+
+
+def test_single_pose_fast_path_rejects_bad_input():
+    pose = ARM.fk(ARM.home)
+    for bad, message in (
+        (np.where(np.eye(4, dtype=bool), np.inf, pose), "NaN or inf"),
+        (pose * np.array([1, 1, 1.01, 1])[:, None], "not orthonormal"),
+        (pose @ np.diag([-1.0, 1.0, 1.0, 1.0]), "reflection"),
+        (pose + np.array([[0, 0, 0, 0]] * 3 + [[0, 0, 0.5, 0]]), "bottom row"),
+    ):
+        with pytest.raises(ValueError, match=message):
+            ARM.ik(bad)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import envs.kinematics
 
-ALLOWED_MODULES = {"__future__", "numpy", "abc", "dataclasses", "typing", "math"}
+ALLOWED_MODULES = {"__future__", "numpy", "abc", "dataclasses", "functools", "typing", "math"}
 
 
 def imported_modules(path: Path) -> set[str]:

@@ -1,0 +1,363 @@
+"""Two-arm relative-manipulation systems (Vorob'ev 2020, figs. 1–3), six joints each.
+
+Arm 1 (links 1–3) and arm 2 (links 4–6) stand on a common base frame Oxyz. The task is the
+pose of arm 2's output link 4 *relative to* arm 1's output link 3; ``fk(q)`` returns it as
+the 4 × 4 pose of frame 4 expressed in frame 3 (the paper's M34 of eq. 11; its M43 of
+eq. 1 is the inverse). Joints are ordered arm 1's three, then arm 2's three, in the order
+the paper lists its generalised coordinates. Frames follow the paper's text and its
+(corrected) equations; ``docs/seed003.md`` derives the solutions and lists the misprints.
+
+RRP–RPP (``dual_rrp_rpp``, fig. 1, eqs. 2–7), q = (φ1, φ2, s3, s4, s5, φ6):
+
+    arm 1: A = (a0, 0, 0);  φ1 about Ox at A;  B = A + Rx(φ1)·(0, 0, l1);
+           φ2 about z2 at B;  link 3 slides s3 along x2:
+           R3 = Rx(φ1)·Rz(φ2),   C3 = B + R3·(s3, 0, 0)
+    arm 2: φ6 about Oz at O;  link 5 slides s5 along z6;  link 4 slides s4 along x6 at the
+           lateral offset b0 = OD:
+           R4 = Rz(φ6),           C4 = Rz(φ6)·(s4, b0, s5)
+
+RRR–PPP (``dual_rrr_ppp``, fig. 2, eqs. 8–10), q = (φ1, φ2, φ3, s4, s5, s6):
+
+    arm 1: A = (0, 0, h);  φ1 about z1 (Oz);  B = A + Rz(φ1)·(l1, 0, 0) on the axis x1 of
+           pair B;  φ2 about x2;  C = B + Rz(φ1)·Rx(φ2)·(0, 0, l2) on the axis z2 of pair C;
+           φ3 about z3;  C3 at l3 along the link axis x3:
+           R3 = Rz(φ1)·Rx(φ2)·Rz(φ3),   C3 = C + R3·(l3, 0, 0)
+    arm 2: a gantry, slides s6 along Ox, s5 along Oz, s4 along Oy (eq. 10 reuses h and
+           adds the offset b0 = b1 − b):
+           R4 = I,                C4 = (s6, b0 + s4, h + s5)
+
+PPR–PRR (``dual_ppr_prr``, fig. 3, eqs. 12–17), q = (s1, s2, φ3, s4, φ5, φ6):
+
+    arm 1: s1 along Ox, s2 along Oy;  φ3 about the vertical axis of pair C at height l1;
+           link 3 of length l3 along x3:
+           R3 = Rz(φ3),           C3 = (s1, s2, l1) + Rz(φ3)·(l3, 0, 0)
+    arm 2: link 6 slides along Oz (joint s4, the equations' s6); φ5 about x6 at E = (0, 0, s4);
+           D = E + Rx(φ5)·(0, 0, l5) on the axis z5 of pair D; φ6 (the equations' φ4) about
+           z5; C4 at l4 along the link axis x4:
+           R4 = Rx(φ5)·Rz(φ6),    C4 = D + R4·(l4, 0, 0)
+
+The paper's list of coordinates for fig. 3 (s4, φ5, φ6) disagrees with its own text and
+eqs. 15–17 (s6, φ5, φ4: the prismatic pair is link 6's, at arm 2's base). The joint names
+keep the list; the mechanism is the text's.
+
+Every relative orientation is a Z–X–Z product, R = Rz(α)·Rx(β)·Rz(γ), so each system has
+two branches, β = ±arccos R[2, 2] (the paper's arccos α33), and the positions then follow
+from linear equations. Where β = 0 or π only α ± γ is defined (a continuum of solutions):
+see each class for the convention that picks one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from .arm import PRISMATIC, REVOLUTE, Arm
+from .rotations import homogeneous, rot_x, rot_z
+from .wrist import WRIST_SINGULAR_TOL, solve_yxy_wrist
+
+_DEG = np.pi / 180.0
+
+#: RRP–RPP: below this |x3 · y4| the slide s3 cannot move C4 across the plane of s4 and s5,
+#: so s3 is either impossible or free.
+SLIDE_PARALLEL_TOL = 1e-12
+#: RRP–RPP: in that case the lateral offset must already match to this distance (m).
+COINCIDENT_TOL = 1e-9
+
+
+def solve_zxz(rotation: np.ndarray) -> np.ndarray:
+    """All (α, β, γ) with Rz(α)·Rx(β)·Rz(γ) = ``rotation`` (…, 3, 3).
+
+    The shared Y–X–Y wrist solver in another basis: with P = Rx(90°), which takes y to z
+    and keeps x, Rz(α)Rx(β)Rz(γ) = P·Ry(α)Rx(β)Ry(γ)·Pᵀ. So the rows, the flip and the
+    singular convention are the wrist's: row 0 has β ≥ 0, row 1 is (α + π, −β, γ + π); at
+    β = 0 or π the free angle is split evenly and both rows describe the same rotation.
+    """
+    return solve_yxy_wrist(_Y_TO_Z.T @ rotation @ _Y_TO_Z)
+
+
+_Y_TO_Z = rot_x(np.pi / 2)
+
+
+def _relative_pose(r3: np.ndarray, p3: np.ndarray, r4: np.ndarray, p4: np.ndarray):
+    """Pose of frame 4 in frame 3 from both frames' world rotations and origins."""
+    r3t = np.swapaxes(r3, -1, -2)
+    return homogeneous(r3t @ r4, (r3t @ (p4 - p3)[..., None])[..., 0])
+
+
+def _apply(rotation: np.ndarray, vector: np.ndarray) -> np.ndarray:
+    return (rotation @ vector[..., None])[..., 0]
+
+
+def _require_positive(arm: Arm, *names: str) -> None:
+    for label in names:
+        if getattr(arm, label) <= 0.0:
+            raise ValueError(f"{arm.name}: {label} must be positive")
+
+
+@dataclass(frozen=True, eq=False)
+class DualRrpRppArm(Arm):
+    """RRP–RPP (fig. 1): a tilting telescopic arm 1 and a turning two-slide arm 2.
+
+    The paper gives no dimensions; the defaults are a plausible compact cell (arm 1's roll
+    axis meets arm 2's column axis 0.3 m from arm 1's base) with the strokes of mid-size
+    telescopic and column robots.
+
+    Branches (2): ``phi1+`` / ``phi1-``, the sign of φ1 = ±arccos R34[2, 2]; the other has
+    φ2 + π and φ6 + π. s3, s4, s5 then follow linearly: s3 from the lateral (y4) offset,
+    which x3 must cross (R34[0, 1] ≠ 0).
+
+    Conventions (measure-zero sets, documented in ``docs/seed003.md``):
+
+    * φ1 = 0 or π (z3 ∥ z4): only φ6 ∓ φ2 is defined and one position equation is lost, so
+      the solutions form a continuum. s3 is put at the middle of its stroke and φ6 solved
+      from the lateral offset: its two values φ6 and π − φ6 are the two branches. If no φ6
+      allows mid-stroke, φ6 = ±90° (the one that brings s3 closest to it) for both.
+    * x3 ⟂ y4 (R34[0, 1] = 0) elsewhere: s3 is free if the lateral offset already matches
+      (then s3 is at mid-stroke), impossible otherwise (NaN).
+    """
+
+    name: ClassVar[str] = "dual_rrp_rpp"
+    joint_names: ClassVar[tuple[str, ...]] = ("phi1", "phi2", "s3", "s4", "s5", "phi6")
+    joint_types: ClassVar[tuple[str, ...]] = (REVOLUTE,) * 2 + (PRISMATIC,) * 3 + (REVOLUTE,)
+    branch_labels: ClassVar[tuple[str, ...]] = ("phi1+", "phi1-")
+
+    #: OA, arm 1's base on Ox (the paper's a0 in eq. 6; no value given): 0.3 m. The flipped
+    #: branch is the pair turned half a turn about Oz with arm 1's base moved by 2·a0, so a
+    #: close placement keeps both branches within the strokes for a fair share of poses.
+    a0: float = 0.3
+    #: AB along z1 (the paper's l1 in eq. 6; no value given): 0.5 m shoulder link.
+    l1: float = 0.5
+    #: OD, lateral offset of arm 2's slide from its turning axis (the paper's b0 in eq. 3,
+    #: b1 = b0 + b; no value given): 0.2 m.
+    b0: float = 0.2
+    #: Roll φ1 and turn φ6 full circle; φ2 ±170° as on common column/waist joints; telescope
+    #: s3 0.2–1.2 m, arm 2's radial slide s4 0.2–1.2 m and lift s5 0–1 m (mid-size
+    #: cylindrical-robot strokes). The paper gives no limits.
+    joint_limits: np.ndarray = (
+        (-np.pi, np.pi),
+        (-170 * _DEG, 170 * _DEG),
+        (0.2, 1.2),
+        (0.2, 1.2),
+        (0.0, 1.0),
+        (-np.pi, np.pi),
+    )
+    #: Arm 1 tilted 20° and turned back towards arm 2's column: clear of every singularity.
+    home: np.ndarray = (20 * _DEG, 160 * _DEG, 0.6, 0.5, 0.5, 10 * _DEG)
+
+    def _check_parameters(self) -> None:
+        # a0 > 0 is what turns φ6 into a position constraint when φ1 = 0 or π (see above).
+        _require_positive(self, "a0", "l1")
+
+    def _arm1(self, phi1, phi2, s3):
+        r3 = rot_x(phi1) @ rot_z(phi2)
+        shoulder = np.stack(
+            [np.full_like(phi1, self.a0), -self.l1 * np.sin(phi1), self.l1 * np.cos(phi1)], -1
+        )
+        return r3, shoulder + s3[..., None] * r3[..., :, 0]
+
+    def _fk(self, q: np.ndarray) -> np.ndarray:
+        r3, p3 = self._arm1(q[..., 0], q[..., 1], q[..., 2])
+        phi6 = q[..., 5]
+        r4 = rot_z(phi6)
+        p4 = _apply(r4, np.stack([q[..., 3], np.full_like(phi6, self.b0), q[..., 4]], -1))
+        return _relative_pose(r3, p3, r4, p4)
+
+    def _ik_candidates(self, pose: np.ndarray) -> np.ndarray:
+        rotation, t = pose[..., :3, :3], pose[..., :3, 3]
+        # R34ᵀ = Rz(−φ6)·Rx(φ1)·Rz(φ2)
+        angles = solve_zxz(np.swapaxes(rotation, -1, -2))
+        phi1, phi2, phi6 = angles[..., 1], angles[..., 2], -angles[..., 0]
+        s3_mid = 0.5 * (self.joint_limits[2, 0] + self.joint_limits[2, 1])
+        singular = np.hypot(rotation[..., 0, 2], rotation[..., 1, 2]) < WRIST_SINGULAR_TOL
+        if np.any(singular):
+            phi1, phi2, phi6 = self._singular_angles(
+                rotation, t, s3_mid, phi1, phi2, phi6, singular
+            )
+        # Arm 2's joint frame sees C3 + R3·t = C4 at (s4, b0, s5) + s3 along R4ᵀ·x3.
+        r3, p3_no_slide = self._arm1(phi1, phi2, np.zeros_like(phi1))
+        r4t = np.swapaxes(rot_z(phi6), -1, -2)
+        w = _apply(r4t, p3_no_slide + _apply(r3, t[..., None, :]))
+        d = _apply(r4t, r3[..., :, 0])
+        gap = self.b0 - w[..., 1]
+        parallel = np.abs(d[..., 1]) < SLIDE_PARALLEL_TOL
+        s3 = gap / np.where(parallel, 1.0, d[..., 1])
+        s3 = np.where(parallel, np.where(np.abs(gap) <= COINCIDENT_TOL, s3_mid, np.nan), s3)
+        s4 = w[..., 0] + s3 * d[..., 0]
+        s5 = w[..., 2] + s3 * d[..., 2]
+        return np.stack([phi1, phi2, s3, s4, s5, phi6], -1)
+
+    def _singular_angles(self, rotation, t, s3_mid, phi1, phi2, phi6, singular):
+        """φ1 = 0 or π: R34 = Rx(φ1)·Rz(θ) with θ = φ6 − ε·φ2 (ε = cos φ1).
+
+        In frame 4 the lateral equation reads −a0·sin φ6 + s3·R34[0, 1] + (R34ᵀt)_y = b0.
+        """
+        eps = np.where(rotation[..., 2, 2] >= 0.0, 1.0, -1.0)
+        theta = np.arctan2(eps * rotation[..., 1, 0], rotation[..., 0, 0])
+        lateral = np.einsum("...ji,...j->...i", rotation, t)[..., 1]
+        sine = (lateral - self.b0 + s3_mid * rotation[..., 0, 1]) / self.a0
+        base = np.arcsin(np.clip(sine, -1.0, 1.0))
+        sing_phi6 = np.stack([base, np.pi - base], -1)
+        sing_phi2 = eps[..., None] * (sing_phi6 - theta[..., None])
+        sing_phi1 = np.broadcast_to(np.where(eps > 0.0, 0.0, np.pi)[..., None], sing_phi6.shape)
+        mask = singular[..., None]
+        return (
+            np.where(mask, sing_phi1, phi1),
+            np.where(mask, sing_phi2, phi2),
+            np.where(mask, sing_phi6, phi6),
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class DualRrrPppArm(Arm):
+    """RRR–PPP (fig. 2): a three-revolute Z–X–Z arm 1 and a Cartesian gantry arm 2.
+
+    The paper gives no dimensions; the defaults are a compact revolute arm (0.8 m column)
+    beside a gantry whose strokes cover arm 1's whole reach.
+
+    Branches (2): ``phi2+`` / ``phi2-``, the sign of φ2 = ±arccos R34[2, 2]; the other has
+    φ1 + π and φ3 + π. The gantry strokes then follow directly (R4 = I).
+
+    Convention: at φ2 = 0 or π only φ1 ± φ3 is defined and the gantry absorbs any choice (a
+    continuum); the free angle is split evenly, φ1 = ±φ3, and both branches coincide.
+    """
+
+    name: ClassVar[str] = "dual_rrr_ppp"
+    joint_names: ClassVar[tuple[str, ...]] = ("phi1", "phi2", "phi3", "s4", "s5", "s6")
+    joint_types: ClassVar[tuple[str, ...]] = (REVOLUTE,) * 3 + (PRISMATIC,) * 3
+    branch_labels: ClassVar[tuple[str, ...]] = ("phi2+", "phi2-")
+
+    #: AO, height of arm 1's first pair (the paper's h in eq. 8; no value given): 0.8 m.
+    h: float = 0.8
+    #: AB along x1 (the paper's l1; no value given): 0.25 m.
+    l1: float = 0.25
+    #: BC along z2 (the paper's l2; no value given): 0.35 m.
+    l2: float = 0.35
+    #: CC3 along x3 (the paper's l3; no value given): 0.3 m.
+    l3: float = 0.3
+    #: y of the gantry's zero stroke (the paper's b0 in b1 = b0 + b, eq. 10; no value
+    #: given): 1.2 m, i.e. the gantry's home stands beside arm 1.
+    b0: float = 1.2
+    #: φ1 and φ3 full circle, φ2 ±170°; gantry strokes reach 0.8 m past arm 1's axis in
+    #: y, ±1 m in x and 0–1.2 m in height (the paper gives no limits).
+    joint_limits: np.ndarray = (
+        (-np.pi, np.pi),
+        (-170 * _DEG, 170 * _DEG),
+        (-np.pi, np.pi),
+        (-2.0, 0.0),
+        (-0.8, 0.4),
+        (-1.0, 1.0),
+    )
+    #: Arm 1 turned 30°, tilted 45°: clear of the φ2 = 0 singularity.
+    home: np.ndarray = (30 * _DEG, 45 * _DEG, -30 * _DEG, -1.0, -0.3, 0.3)
+
+    def _check_parameters(self) -> None:
+        _require_positive(self, "l1", "l2", "l3")
+
+    def _arm1(self, phi1, phi2, phi3):
+        r2 = rot_z(phi1) @ rot_x(phi2)
+        r3 = r2 @ rot_z(phi3)
+        base = np.stack(
+            [self.l1 * np.cos(phi1), self.l1 * np.sin(phi1), np.full_like(phi1, self.h)], -1
+        )
+        return r3, base + self.l2 * r2[..., :, 2] + self.l3 * r3[..., :, 0]
+
+    def _fk(self, q: np.ndarray) -> np.ndarray:
+        r3, p3 = self._arm1(q[..., 0], q[..., 1], q[..., 2])
+        p4 = np.stack([q[..., 5], self.b0 + q[..., 3], self.h + q[..., 4]], -1)
+        return _relative_pose(r3, p3, np.broadcast_to(np.eye(3), r3.shape), p4)
+
+    def _ik_candidates(self, pose: np.ndarray) -> np.ndarray:
+        rotation, t = pose[..., :3, :3], pose[..., :3, 3]
+        # R3 = R34ᵀ because the gantry never turns.
+        angles = solve_zxz(np.swapaxes(rotation, -1, -2))
+        phi1, phi2, phi3 = angles[..., 0], angles[..., 1], angles[..., 2]
+        r3, p3 = self._arm1(phi1, phi2, phi3)
+        p4 = p3 + _apply(r3, t[..., None, :])
+        return np.stack(
+            [phi1, phi2, phi3, p4[..., 1] - self.b0, p4[..., 2] - self.h, p4[..., 0]], -1
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class DualPprPrrArm(Arm):
+    """PPR–PRR (fig. 3): an XY carriage with a turning link and a lift with a two-axis head.
+
+    The paper gives no dimensions; the defaults are an overhead XY carriage 1.5 m high
+    above a lift column with a tilting, turning head.
+
+    Branches (2): ``phi5+`` / ``phi5-``, the sign of φ5 = ±arccos R34[2, 2]; the other has
+    φ3 + π and φ6 + π. s1, s2 and the lift s4 then follow directly.
+
+    Convention: at φ5 = 0 or π only φ6 ∓ φ3 is defined and the carriage absorbs any choice
+    (a continuum); the free angle is split evenly, φ6 = ∓φ3, and both branches coincide.
+    """
+
+    name: ClassVar[str] = "dual_ppr_prr"
+    joint_names: ClassVar[tuple[str, ...]] = ("s1", "s2", "phi3", "s4", "phi5", "phi6")
+    joint_types: ClassVar[tuple[str, ...]] = (
+        (PRISMATIC,) * 2 + (REVOLUTE, PRISMATIC) + (REVOLUTE,) * 2
+    )
+    branch_labels: ClassVar[tuple[str, ...]] = ("phi5+", "phi5-")
+
+    #: Height of link 3's frame, the length of link 1 (the paper's l1 in eq. 13; no value
+    #: given): 1.5 m, an overhead carriage.
+    l1: float = 1.5
+    #: Link 3 (the paper's l3 in eq. 13; no value given): 0.4 m.
+    l3: float = 0.4
+    #: Link 4 along x4 (the paper's l4 in eq. 16; no value given): 0.3 m.
+    l4: float = 0.3
+    #: ED along z5 (the paper's l5 in eq. 16; no value given): 0.5 m.
+    l5: float = 0.5
+    #: Carriage strokes ±1 m in x and y, lift 0–1 m, the head's tilt φ5 ±135° (a typical
+    #: industrial wrist bend), the turns full circle (the paper gives no limits).
+    joint_limits: np.ndarray = (
+        (-1.0, 1.0),
+        (-1.0, 1.0),
+        (-np.pi, np.pi),
+        (0.0, 1.0),
+        (-135 * _DEG, 135 * _DEG),
+        (-np.pi, np.pi),
+    )
+    #: Head tilted 45°: clear of the φ5 = 0 singularity.
+    home: np.ndarray = (0.2, 0.0, 30 * _DEG, 0.5, 45 * _DEG, 20 * _DEG)
+
+    def _check_parameters(self) -> None:
+        _require_positive(self, "l1", "l3", "l4", "l5")
+
+    def _arm2_offset(self, phi5, phi6):
+        """C4 − E and R4 of arm 2 (E = (0, 0, s4))."""
+        r4 = rot_x(phi5) @ rot_z(phi6)
+        return r4, self.l5 * r4[..., :, 2] + self.l4 * r4[..., :, 0]
+
+    def _fk(self, q: np.ndarray) -> np.ndarray:
+        phi3 = q[..., 2]
+        r3 = rot_z(phi3)
+        p3 = np.stack(
+            [
+                q[..., 0] + self.l3 * np.cos(phi3),
+                q[..., 1] + self.l3 * np.sin(phi3),
+                np.full_like(phi3, self.l1),
+            ],
+            -1,
+        )
+        r4, offset = self._arm2_offset(q[..., 4], q[..., 5])
+        p4 = offset + np.stack([np.zeros_like(phi3), np.zeros_like(phi3), q[..., 3]], -1)
+        return _relative_pose(r3, p3, r4, p4)
+
+    def _ik_candidates(self, pose: np.ndarray) -> np.ndarray:
+        rotation, t = pose[..., :3, :3], pose[..., :3, 3]
+        # R34 = Rz(−φ3)·Rx(φ5)·Rz(φ6)
+        angles = solve_zxz(rotation)
+        phi3, phi5, phi6 = -angles[..., 0], angles[..., 1], angles[..., 2]
+        _, offset = self._arm2_offset(phi5, phi6)
+        # C4 = (s1, s2, l1) + Rz(φ3)·(l3 + a, b, c) = (0, 0, s4) + offset  (eqs. 13, 16)
+        reach = np.stack(
+            np.broadcast_arrays(self.l3 + t[..., None, 0], t[..., None, 1], t[..., None, 2]), -1
+        )
+        arm1 = _apply(rot_z(phi3), reach)
+        s1 = offset[..., 0] - arm1[..., 0]
+        s2 = offset[..., 1] - arm1[..., 1]
+        s4 = self.l1 + arm1[..., 2] - offset[..., 2]
+        return np.stack([s1, s2, phi3, s4, phi5, phi6], -1)
