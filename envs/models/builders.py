@@ -1,0 +1,387 @@
+"""Per-arm kinematic trees built with ``mujoco.MjSpec`` from the kinematics' own parameters.
+
+Every builder reads the arm's dimensions, joint limits and joint order from the ``Arm``
+instance, so the MuJoCo model and ``arm.fk`` cannot drift apart: the first ``arm.dof``
+entries of ``qpos`` are the arm's joints in kinematics order, each hinge/slide axis passes
+through its body's origin, and slides sit at zero offset along their axis so that
+``qpos = s`` means a displacement of exactly ``s`` metres. The site ``ee`` is the frame
+``arm.fk`` reports (position and orientation).
+
+Geometry follows the usual MuJoCo split: every link part is added twice, as a visual geom
+(group 2, no contacts, massless) and as a collision geom (group 3, ``contype = conaffinity =
+1``, carries the mass). Contacts between bodies that are built to touch (a joint's two
+sides, a slide running inside its guide, the parts of a spherical wrist) are excluded
+explicitly; everything else between arm bodies is a real self-collision.
+
+A new arm type registers a tree builder with :func:`register_tree_builder`; two-arm systems
+are expected to add the sites ``link3`` and ``link4`` (their relative-pose frames) and need
+nothing else here, because contacts between any two collision geoms are counted.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+
+from envs.kinematics import Arm
+
+#: Geom groups: MuJoCo's renderer shows groups 0–2 by default, so collision geoms (3) stay
+#: hidden unless asked for.
+VISUAL_GROUP, COLLISION_GROUP = 2, 3
+#: Contact bit shared by every collision geom (arm links, obstacles, floor).
+COLLISION_BIT = 1
+
+#: The positioning part of every six-DOF arm ends this far (m) behind the wrist centre along
+#: the wrist's roll axis; the roll housing fills the gap, so wrist parts never overlap the
+#: link in front of them.
+WRIST_SETBACK = 0.25
+#: Length (m) of the held tool along y3 (the worked example's b = 350 mm) and its radius.
+TOOL_LENGTH, TOOL_RADIUS = 0.35, 0.025
+
+ORANGE = (0.93, 0.45, 0.10, 1.0)
+DARK = (0.22, 0.22, 0.25, 1.0)
+STEEL = (0.62, 0.64, 0.68, 1.0)
+TOOL_RGBA = (0.85, 0.80, 0.20, 1.0)
+COLLISION_RGBA = (0.2, 0.6, 0.9, 0.35)
+
+
+@dataclass
+class ArmTree:
+    """What a tree builder reports: bodies in chain order and the wrist/tool body names."""
+
+    bodies: list[str] = field(default_factory=list)
+    ee_body: str = ""
+    tool_body: str | None = None
+
+
+TreeBuilder = Callable[[mujoco.MjSpec, Arm, bool], ArmTree]
+TREE_BUILDERS: dict[str, TreeBuilder] = {}
+
+
+def register_tree_builder(name: str) -> Callable[[TreeBuilder], TreeBuilder]:
+    """Decorator: register ``builder(spec, arm, tool) -> ArmTree`` for the arm ``name``."""
+
+    def decorate(builder: TreeBuilder) -> TreeBuilder:
+        if name in TREE_BUILDERS:
+            raise ValueError(f"a tree builder for arm {name!r} is already registered")
+        TREE_BUILDERS[name] = builder
+        return builder
+
+    return decorate
+
+
+# --------------------------------------------------------------------------------- helpers
+_GEOM_TYPES = {
+    "capsule": mujoco.mjtGeom.mjGEOM_CAPSULE,
+    "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER,
+    "box": mujoco.mjtGeom.mjGEOM_BOX,
+    "sphere": mujoco.mjtGeom.mjGEOM_SPHERE,
+}
+
+
+def add_part(
+    body: mujoco.MjsBody,
+    name: str,
+    kind: str,
+    size,
+    rgba,
+    *,
+    fromto=None,
+    pos=None,
+    quat=None,
+) -> None:
+    """Add one link part as a visual geom ``<name>_vis`` and a collision geom ``<name>``.
+
+    A cylinder's collision twin is a capsule inside the same length (or, for a disc, the
+    circumscribing box): MuJoCo's cylinder pairs go through the general convex solver,
+    which made collision checks about twice as slow.
+    """
+    size = np.asarray(size, dtype=float)
+    for visual in (True, False):
+        geom = body.add_geom()
+        geom.name = f"{name}_vis" if visual else name
+        geom.type = _GEOM_TYPES[kind]
+        geom.size = np.resize(size, 3)
+        if fromto is not None:
+            geom.fromto = np.asarray(fromto, dtype=float)
+        if kind == "cylinder" and not visual:
+            _cylinder_to_primitive(geom, size, fromto)
+        if pos is not None:
+            geom.pos = np.asarray(pos, dtype=float)
+        if quat is not None:
+            geom.quat = np.asarray(quat, dtype=float)
+        if visual:
+            geom.contype = geom.conaffinity = 0
+            geom.group = VISUAL_GROUP
+            geom.density = 0.0  # the collision twin carries the mass
+            geom.rgba = rgba
+        else:
+            geom.contype = geom.conaffinity = COLLISION_BIT
+            geom.group = COLLISION_GROUP
+            geom.rgba = COLLISION_RGBA
+            geom.density = 500.0  # hollow steel links, roughly
+
+
+def _cylinder_to_primitive(geom: mujoco.MjsGeom, size: np.ndarray, fromto) -> None:
+    radius = size[0]
+    if fromto is not None:
+        ends = np.asarray(fromto, dtype=float).reshape(2, 3)
+        length = np.linalg.norm(ends[1] - ends[0])
+        half = length / 2
+        centre, axis = ends.mean(axis=0), (ends[1] - ends[0]) / max(length, 1e-12)
+    else:
+        half, centre, axis = size[1], None, None
+    if half >= radius:
+        geom.type = mujoco.mjtGeom.mjGEOM_CAPSULE
+        if fromto is not None:
+            inner = half - radius
+            geom.fromto = np.concatenate([centre - inner * axis, centre + inner * axis])
+        else:
+            geom.size = np.array([radius, half - radius, 0.0])
+    else:  # a disc: the box around it (fromto keeps the axis; size gives the x/y halves)
+        geom.type = mujoco.mjtGeom.mjGEOM_BOX
+        geom.size = np.array([radius, radius, half])
+
+
+def add_static_body(spec: mujoco.MjSpec, name: str) -> mujoco.MjsBody:
+    body = spec.worldbody.add_body()
+    body.name = name
+    return body
+
+
+def add_link(
+    parent: mujoco.MjsBody, arm: Arm, index: int, axis, pos=(0.0, 0.0, 0.0)
+) -> mujoco.MjsBody:
+    """Child body ``link_<joint>`` at ``pos`` carrying the arm's joint ``index``.
+
+    The joint sits at the body origin (so the axis passes through it); its range is the
+    arm's limit, in radians for hinges (the spec compiles in radians).
+    """
+    name = arm.joint_names[index]
+    body = parent.add_body()
+    body.name = f"link_{name}"
+    body.pos = np.asarray(pos, dtype=float)
+    joint = body.add_joint()
+    joint.name = name
+    joint.type = (
+        mujoco.mjtJoint.mjJNT_HINGE
+        if arm.joint_types[index] == "revolute"
+        else mujoco.mjtJoint.mjJNT_SLIDE
+    )
+    joint.axis = np.asarray(axis, dtype=float)
+    joint.limited = mujoco.mjtLimited.mjLIMITED_TRUE
+    joint.range = np.asarray(arm.joint_limits[index], dtype=float)
+    # Damping and armature only keep a passive mj_step well behaved; the envs never
+    # integrate dynamics.
+    joint.damping = np.array([50.0, 0.0, 0.0])  # polynomial coefficients, linear first
+    joint.armature = 1.0
+    return body
+
+
+def exclude(spec: mujoco.MjSpec, first: str, second: str) -> None:
+    pair = spec.add_exclude()
+    pair.bodyname1, pair.bodyname2 = first, second
+
+
+def add_spherical_wrist(
+    spec: mujoco.MjSpec,
+    tree: ArmTree,
+    parent: mujoco.MjsBody,
+    arm: Arm,
+    first: int,
+    tool: bool,
+    pos=(0.0, 0.0, 0.0),
+) -> None:
+    """The papers' Y–X–Y wrist (joints ``first``..``first+2``), ``ee`` at the wrist centre.
+
+    The roll housing reaches back along −y to the positioning link; the bend housing lies
+    along x; the flange and gripper point along +y (the tool axis y3).
+    """
+    roll = add_link(parent, arm, first, (0, 1, 0), pos)
+    add_part(roll, "roll_housing", "capsule", [0.07], ORANGE,
+             fromto=[0, -WRIST_SETBACK, 0, 0, -0.12, 0])
+    bend = add_link(roll, arm, first + 1, (1, 0, 0))
+    add_part(bend, "bend_housing", "capsule", [0.065], DARK, fromto=[-0.07, 0, 0, 0.07, 0, 0])
+    flange = add_link(bend, arm, first + 2, (0, 1, 0))
+    add_part(flange, "flange", "cylinder", [0.05], STEEL, fromto=[0, 0.02, 0, 0, 0.10, 0])
+    add_part(flange, "gripper", "box", [0.06, 0.03, 0.02], DARK, pos=[0, 0.13, 0])
+    site = flange.add_site()
+    site.name = "ee"
+    site.size = np.array([0.03, 0.0, 0.0])
+    tree.bodies += [roll.name, bend.name, flange.name]
+    tree.ee_body = flange.name
+    if tool:
+        holder = flange.add_body()  # welded: moves with the flange, named for reports
+        holder.name = "tool"
+        add_part(holder, "tool", "cylinder", [TOOL_RADIUS], TOOL_RGBA,
+                 fromto=[0, 0, 0, 0, TOOL_LENGTH, 0])
+        tree.tool_body = holder.name
+    # The three wrist bodies share the wrist centre: the wrist's own design keeps them clear
+    # of each other within the joint limits, which these primitives cannot represent.
+    for a, b in [(parent.name, roll.name), (roll.name, bend.name), (bend.name, flange.name),
+                 (roll.name, flange.name)]:
+        exclude(spec, a, b)
+    if tool:
+        exclude(spec, roll.name, "tool")
+        exclude(spec, bend.name, "tool")
+
+
+def _chain_excludes(spec: mujoco.MjSpec, names: list[str]) -> None:
+    for a, b in itertools.pairwise(names):
+        exclude(spec, a, b)
+
+
+# ------------------------------------------------------------------------------ the arms
+@register_tree_builder("cartesian")
+def build_cartesian(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> ArmTree:
+    """Gantry: s1 along X0 (bridge), s2 along Y0 (carriage), s3 along Z0 (ram), then the
+    Y–X–Y wrist at the ram's foot, O = (s1, s2, s3). The ram is 0.3 m behind the wrist
+    centre (−y) so that the wrist's roll axis is horizontal like the other arms'."""
+    lim = arm.joint_limits
+    x_half = max(abs(lim[0, 0]), abs(lim[0, 1])) + 0.6
+    y_half = max(abs(lim[1, 0]), abs(lim[1, 1])) + 0.5
+    height = lim[2, 1] + 0.6  # rails above the highest wrist position
+    ram_offset = 0.3
+    tree = ArmTree()
+    base = add_static_body(spec, "base")
+    for sx in (-1, 1):
+        for sy in (-1, 1):
+            add_part(base, f"leg_{'mp'[sx > 0]}{'mp'[sy > 0]}", "box", [0.08, 0.08, height / 2],
+                     DARK, pos=[sx * x_half, sy * y_half, height / 2])
+    for sy in (-1, 1):
+        add_part(base, f"rail_{'mp'[sy > 0]}", "box", [x_half + 0.08, 0.08, 0.08], DARK,
+                 pos=[0, sy * y_half, height])
+    bridge = add_link(base, arm, 0, (1, 0, 0))
+    # Behind the ram (−x) so that the ram, which sits at x = s1 exactly, clears the beam.
+    add_part(bridge, "bridge", "box", [0.1, y_half, 0.1], ORANGE,
+             pos=[-0.3, 0, height + 0.18])
+    carriage = add_link(bridge, arm, 1, (0, 1, 0))
+    add_part(carriage, "carriage", "box", [0.22, 0.15, 0.15], ORANGE,
+             pos=[-0.12, -ram_offset, height + 0.12])
+    ram = add_link(carriage, arm, 2, (0, 0, 1))
+    ram_top = height + 0.35 - lim[2, 0]  # still above the carriage at the lowest stroke
+    add_part(ram, "ram", "capsule", [0.08], STEEL,
+             fromto=[0, -ram_offset, 0.0, 0, -ram_offset, ram_top])
+    add_part(ram, "ram_foot", "capsule", [0.08], STEEL,
+             fromto=[0, -ram_offset, 0, 0, -WRIST_SETBACK, 0])
+    tree.bodies += ["base", bridge.name, carriage.name, ram.name]
+    _chain_excludes(spec, tree.bodies)
+    add_spherical_wrist(spec, tree, ram, arm, 3, tool)
+    return tree
+
+
+def _column_lift_turn_radial(spec: mujoco.MjSpec, arm: Arm, tree: ArmTree, radius: float):
+    """The positioning part shared by the cylindrical arms: s1 up the fixed column, φ1
+    about Z0, s2 radially along the arm's +y; returns the radial slide's body."""
+    lim = arm.joint_limits
+    base = add_static_body(spec, "base")
+    add_part(base, "plate", "cylinder", [0.35, 0.03], DARK, pos=[0, 0, 0.03])
+    add_part(base, "column", "cylinder", [0.10], DARK, fromto=[0, 0, 0, 0, 0, lim[0, 1] + 0.25])
+    lift = add_link(base, arm, 0, (0, 0, 1))
+    add_part(lift, "sleeve", "cylinder", [0.16], ORANGE, fromto=[0, 0, -0.15, 0, 0, 0.15])
+    turn = add_link(lift, arm, 1, (0, 0, 1))
+    add_part(turn, "guide", "box", [0.14, 0.24, 0.12], ORANGE, pos=[0, 0, 0])
+    radial = add_link(turn, arm, 2, (0, 1, 0))
+    # Long enough to stay in the guide (|y| < 0.24) at full stroke.
+    tail = -lim[2, 1] - 0.2
+    add_part(radial, "beam", "capsule", [radius], STEEL,
+             fromto=[0, tail, 0, 0, -WRIST_SETBACK, 0])
+    tree.bodies += ["base", lift.name, turn.name, radial.name]
+    _chain_excludes(spec, tree.bodies)
+    # The turn head surrounds the column and the beam runs through the head over the
+    # column's axis: built to overlap.
+    for a, b in [("base", turn.name), ("base", radial.name), (lift.name, radial.name)]:
+        exclude(spec, a, b)
+    return radial
+
+
+@register_tree_builder("cylindrical")
+def build_cylindrical(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> ArmTree:
+    """s1 along Z0, φ1 about Z0, s2 radial along the arm's y, then the Y–X–Y wrist:
+    O = (−s2 sin φ1, s2 cos φ1, s1)."""
+    tree = ArmTree()
+    radial = _column_lift_turn_radial(spec, arm, tree, 0.07)
+    add_spherical_wrist(spec, tree, radial, arm, 3, tool)
+    return tree
+
+
+@register_tree_builder("cylindrical4")
+def build_cylindrical4(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> ArmTree:
+    """The cylindrical arm's positioning part and one gripper rotation φ2 about the arm
+    axis y: R = Rz(φ1)·Ry(φ2)."""
+    tree = ArmTree()
+    radial = _column_lift_turn_radial(spec, arm, tree, 0.06)
+    grip = add_link(radial, arm, 3, (0, 1, 0))
+    add_part(grip, "rotary", "cylinder", [0.06], DARK,
+             fromto=[0, -WRIST_SETBACK + 0.02, 0, 0, 0.02, 0])
+    # Wide along x so that the φ2 rotation is visible.
+    add_part(grip, "gripper", "box", [0.09, 0.04, 0.025], ORANGE, pos=[0, 0.07, 0])
+    site = grip.add_site()
+    site.name = "ee"
+    site.size = np.array([0.03, 0.0, 0.0])
+    tree.bodies.append(grip.name)
+    tree.ee_body = grip.name
+    exclude(spec, radial.name, grip.name)
+    if tool:
+        holder = grip.add_body()
+        holder.name = "tool"
+        add_part(holder, "tool", "cylinder", [TOOL_RADIUS], TOOL_RGBA,
+                 fromto=[0, 0, 0, 0, TOOL_LENGTH, 0])
+        tree.tool_body = holder.name
+        exclude(spec, radial.name, "tool")
+    return tree
+
+
+@register_tree_builder("spherical")
+def build_spherical(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> ArmTree:
+    """φ1 about Z0, shoulder at (0, 0, l1), elevation φ2 about x, radial slide s1 along the
+    boom's y, then the Y–X–Y wrist: O = (0, 0, l1) + Rz(φ1)·Rx(φ2)·(0, s1, 0)."""
+    lim = arm.joint_limits
+    tree = ArmTree()
+    base = add_static_body(spec, "base")
+    add_part(base, "pedestal", "cylinder", [0.18], DARK, fromto=[0, 0, 0, 0, 0, arm.l1 - 0.45])
+    add_part(base, "plate", "cylinder", [0.35, 0.03], DARK, pos=[0, 0, 0.03])
+    turret = add_link(base, arm, 0, (0, 0, 1))
+    add_part(turret, "turret", "cylinder", [0.22], ORANGE,
+             fromto=[0, 0, arm.l1 - 0.45, 0, 0, arm.l1 - 0.12])
+    add_part(turret, "yoke", "box", [0.26, 0.08, 0.14], ORANGE, pos=[0, 0, arm.l1])
+    boom = add_link(turret, arm, 1, (1, 0, 0), (0, 0, arm.l1))
+    add_part(boom, "trunnion", "capsule", [0.1], DARK, fromto=[-0.2, 0, 0, 0.2, 0, 0])
+    add_part(boom, "boom", "capsule", [0.12], ORANGE, fromto=[0, -0.25, 0, 0, 0.25, 0])
+    ram = add_link(boom, arm, 2, (0, 1, 0))
+    # The ram's tail stays inside the boom (front end +0.25) at full stroke.
+    add_part(ram, "ram", "capsule", [0.07], STEEL,
+             fromto=[0, 0.25 - lim[2, 1], 0, 0, -WRIST_SETBACK, 0])
+    tree.bodies += ["base", turret.name, boom.name, ram.name]
+    _chain_excludes(spec, tree.bodies)
+    exclude(spec, turret.name, ram.name)  # the ram slides through the yoke
+    add_spherical_wrist(spec, tree, ram, arm, 3, tool)
+    return tree
+
+
+@register_tree_builder("anthropomorphic")
+def build_anthropomorphic(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> ArmTree:
+    """φ1 about Z0 (column), shoulder at (0, 0, l1), φ2 and φ3 about local x, upper arm
+    (l2) and forearm (l3) along local y, then the Y–X–Y wrist at the forearm's end."""
+    tree = ArmTree()
+    base = add_static_body(spec, "base")
+    add_part(base, "plinth", "cylinder", [0.3], DARK, fromto=[0, 0, 0, 0, 0, 0.3])
+    column = add_link(base, arm, 0, (0, 0, 1))
+    add_part(column, "column", "capsule", [0.12], ORANGE, fromto=[0, 0, 0.3, 0, 0, arm.l1])
+    add_part(column, "shoulder", "capsule", [0.13], DARK,
+             fromto=[-0.18, 0, arm.l1, 0.18, 0, arm.l1])
+    upper = add_link(column, arm, 1, (1, 0, 0), (0, 0, arm.l1))
+    add_part(upper, "upper_arm", "capsule", [0.10], ORANGE, fromto=[0, 0, 0, 0, arm.l2, 0])
+    add_part(upper, "elbow", "capsule", [0.10], DARK,
+             fromto=[-0.12, arm.l2, 0, 0.12, arm.l2, 0])
+    fore = add_link(upper, arm, 2, (1, 0, 0), (0, arm.l2, 0))
+    add_part(fore, "forearm", "capsule", [0.08], ORANGE,
+             fromto=[0, 0, 0, 0, max(arm.l3 - WRIST_SETBACK, 0.0), 0])
+    tree.bodies += ["base", column.name, upper.name, fore.name]
+    _chain_excludes(spec, tree.bodies)
+    add_spherical_wrist(spec, tree, fore, arm, 3, tool, pos=(0, arm.l3, 0))
+    return tree

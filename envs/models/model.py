@@ -1,0 +1,104 @@
+"""``build_model``: an arm's kinematic tree plus a scene, compiled to an ``MjModel``."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from envs.kinematics import Arm, make_arm
+
+from .builders import COLLISION_BIT, TREE_BUILDERS, ArmTree, exclude
+from .scenes import SCENES, default_tool
+
+
+def arm_spec(arm: Arm, *, tool: bool = False) -> tuple[mujoco.MjSpec, ArmTree]:
+    """A fresh ``MjSpec`` holding the floor, lights and ``arm``'s tree (no obstacles)."""
+    try:
+        builder = TREE_BUILDERS[arm.name]
+    except KeyError:
+        raise ValueError(
+            f"no MuJoCo tree builder for arm {arm.name!r}; registered: "
+            f"{', '.join(TREE_BUILDERS)}"
+        ) from None
+    spec = mujoco.MjSpec()
+    spec.modelname = arm.name
+    spec.compiler.degree = False  # every angle below, and every joint range, is in radians
+    spec.compiler.autolimits = True
+    spec.option.timestep = 0.002
+    spec.visual.global_.offwidth = 1280
+    spec.visual.global_.offheight = 960
+    spec.visual.headlight.ambient = np.array([0.35, 0.35, 0.35])
+    spec.visual.headlight.diffuse = np.array([0.5, 0.5, 0.5])
+
+    texture = spec.add_texture()
+    texture.name = "grid"
+    texture.type = mujoco.mjtTexture.mjTEXTURE_2D
+    texture.builtin = mujoco.mjtBuiltin.mjBUILTIN_CHECKER
+    texture.rgb1 = np.array([0.80, 0.82, 0.85])
+    texture.rgb2 = np.array([0.70, 0.72, 0.76])
+    texture.width = texture.height = 512
+    material = spec.add_material()
+    material.name = "floor"
+    material.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = "grid"
+    material.texrepeat = np.array([8.0, 8.0])
+    floor = spec.worldbody.add_geom()
+    floor.name = "floor"
+    floor.type = mujoco.mjtGeom.mjGEOM_PLANE
+    floor.size = np.array([0.0, 0.0, 0.05])  # infinite plane
+    floor.material = "floor"
+    floor.contype = floor.conaffinity = COLLISION_BIT
+    light = spec.worldbody.add_light()
+    light.name = "sun"
+    light.pos = np.array([2.0, -2.0, 6.0])
+    light.dir = np.array([-0.3, 0.3, -1.0])
+    light.diffuse = np.array([0.6, 0.6, 0.6])
+    light.castshadow = True
+
+    tree = builder(spec, arm, tool)
+    exclude(spec, "world", "base")  # the base stands on the floor
+    return spec, tree
+
+
+def build_arm_model(
+    arm: Arm, scene: str = "empty", *, tool: bool | None = None, **scene_kwargs: Any
+) -> mujoco.MjModel:
+    """Compile ``arm`` (any registered ``Arm`` instance, any parameters) in ``scene``.
+
+    ``tool`` adds the held tool (a 0.35 m cylinder along y3 from the wrist centre, body
+    ``tool``); by default it is on in scenes that are about carrying a tool (the milling
+    cell). ``scene_kwargs`` go to the scene builder (e.g. ``seed`` for ``random_clutter``).
+    """
+    try:
+        scene_builder = SCENES[scene]
+    except KeyError:
+        raise ValueError(f"unknown scene {scene!r}; choose one of {', '.join(SCENES)}") from None
+    if tool is None:
+        tool = default_tool(scene)
+    spec, tree = arm_spec(arm, tool=tool)
+    model = scene_builder(spec, arm, tree, **scene_kwargs)
+    check_joint_order(model, arm)
+    return model
+
+
+def build_model(
+    arm_name: str,
+    scene: str = "empty",
+    *,
+    arm_params: dict[str, Any] | None = None,
+    **kwargs: Any,
+) -> mujoco.MjModel:
+    """``build_arm_model(make_arm(arm_name, **arm_params), scene, **kwargs)``."""
+    return build_arm_model(make_arm(arm_name, **(arm_params or {})), scene, **kwargs)
+
+
+def check_joint_order(model: mujoco.MjModel, arm: Arm) -> None:
+    """``RuntimeError`` unless qpos[:dof] are the arm's joints in kinematics order."""
+    for index, (name, kind) in enumerate(zip(arm.joint_names, arm.joint_types, strict=True)):
+        joint = model.joint(name)
+        expected = (
+            mujoco.mjtJoint.mjJNT_HINGE if kind == "revolute" else mujoco.mjtJoint.mjJNT_SLIDE
+        )
+        if model.jnt_qposadr[joint.id] != index or model.jnt_type[joint.id] != expected:
+            raise RuntimeError(f"{arm.name}: joint {name} is not qpos[{index}] of type {kind}")

@@ -1,0 +1,191 @@
+"""Scenes: obstacles added to an arm's spec, then compiled.
+
+``empty``
+    The floor only (every arm).
+``milling_cell``
+    Klyuiko's (1986) worked example for the anthropomorphic arm: a tool is taken from a
+    horizontal rack (position 1) into the spindle of a vertical milling machine
+    (position 2). The cell is laid out around the paper's two poses (see
+    :func:`milling_cell_poses`) so that the recommended transfer 1.1 → 2.1 is collision-free
+    along its linear joint-space path, while reach-under and reach-over choices hit the
+    rack cabinet, the machine or the floor. The held tool is on by default.
+``random_clutter``
+    Seeded boxes and cylinders standing on the floor near points of the arm's workspace
+    (any arm); obstacles that would touch the arm at ``arm.home`` (within the collision
+    checker's clearance) or overlap its fixed base are dropped.
+
+Obstacles are static bodies (children of the world body): contacts among them and with the
+floor are never computed, only their contacts with the arm.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from envs.kinematics import Arm
+
+from .builders import STEEL, ArmTree, add_part, add_static_body
+from .collision import DEFAULT_RESOLUTION, CollisionChecker
+
+MACHINE_RGBA = (0.30, 0.55, 0.45, 1.0)
+RACK_RGBA = (0.35, 0.40, 0.55, 1.0)
+CLUTTER_RGBA = (0.55, 0.50, 0.45, 1.0)
+
+#: The worked example's gripper-frame points (mm): wrist centre O and the points
+#: (a, 0, 0), (0, b, 0), (0, 0, c) of x3 y3 z3, with a = c = 50 mm, b = 350 mm.
+PAPER_POINTS_MM = {
+    1: ((525, 1272, 800), (525, 1272, 750), (875, 1272, 800), (525, 1222, 800)),
+    2: ((-1475, 1290, 1100), (-1475, 1340, 1100), (-1475, 1290, 1450), (-1425, 1290, 1100)),
+}
+PAPER_ABC_MM = (50.0, 350.0, 50.0)
+#: Branch index (in ``arm.branch_labels`` order) of the paper's recommended solutions
+#: 1.1 and 2.1: shoulder front, elbow up, wrist + at both positions.
+RECOMMENDED_BRANCHES = (0, 0)
+#: Tool tip to spindle nose at position 2 (m): the last few centimetres of the insertion
+#: are the machine's clamping stroke, not the arm's transfer.
+SPINDLE_CLEARANCE = 0.03
+
+
+def default_tool(scene: str) -> bool:
+    return scene == "milling_cell"
+
+
+def _pose_from_points_mm(points, abc) -> np.ndarray:
+    # The paper's eq. (3): columns of R are (P2−P1)/a, (P3−P1)/b, (P4−P1)/c.
+    p = np.asarray(points, dtype=float) / 1000.0
+    a, b, c = (v / 1000.0 for v in abc)
+    pose = np.eye(4)
+    pose[:3, 0], pose[:3, 1], pose[:3, 2] = (p[1] - p[0]) / a, (p[2] - p[0]) / b, (p[3] - p[0]) / c
+    pose[:3, 3] = p[0]
+    return pose
+
+
+def milling_cell_poses() -> tuple[np.ndarray, np.ndarray]:
+    """The gripper poses (4, 4) at position 1 (rack) and position 2 (spindle), in metres."""
+    return tuple(_pose_from_points_mm(PAPER_POINTS_MM[k], PAPER_ABC_MM) for k in (1, 2))
+
+
+# ----------------------------------------------------------------------------- scenes
+def empty(spec: mujoco.MjSpec, arm: Arm, tree: ArmTree) -> mujoco.MjModel:
+    return spec.compile()
+
+
+def _box(body, name, lo, hi, rgba) -> None:
+    lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+    add_part(body, name, "box", (hi - lo) / 2, rgba, pos=(hi + lo) / 2)
+
+
+def milling_cell(spec: mujoco.MjSpec, arm: Arm, tree: ArmTree) -> mujoco.MjModel:
+    """Tool rack around position 1 and a C-frame vertical milling machine at position 2.
+
+    Every obstacle is placed relative to the paper's poses, so the cell follows the
+    worked example's points rather than the arm's link lengths.
+    """
+    if arm.name != "anthropomorphic":
+        raise ValueError("the milling cell is the anthropomorphic arm's worked example")
+    pose1, pose2 = milling_cell_poses()
+    o1, tool_axis1 = pose1[:3, 3], pose1[:3, 1]
+    o2, tool_axis2 = pose2[:3, 3], pose2[:3, 1]
+    if not (np.allclose(tool_axis1, (1, 0, 0)) and np.allclose(tool_axis2, (0, 0, 1))):
+        raise RuntimeError("the layout below assumes the paper's tool axes (+X0, then +Z0)")
+    tool_length = PAPER_ABC_MM[1] / 1000.0
+    x1, y1, z1 = o1
+
+    # Position 1: a cabinet whose top is 0.2 m below the tool, V-block cradles under the
+    # tool's far half (clear of the gripper near O), two more tools in the slots on the −Y0
+    # side (the side away from the machine, which the tool leaves towards).
+    rack = add_static_body(spec, "rack")
+    slot_pitch = 0.22
+    _box(rack, "rack_cabinet", (x1 - 0.12, y1 - 2 * slot_pitch - 0.12, 0.0),
+         (x1 + 0.48, y1 + 0.15, z1 - 0.2), RACK_RGBA)
+    for k, dy in enumerate((-2 * slot_pitch, -slot_pitch, 0.0)):
+        y = y1 + dy
+        _box(rack, f"rack_cradle{k}", (x1 + 0.22, y - 0.04, z1 - 0.2),
+             (x1 + 0.32, y + 0.04, z1 - 0.045), RACK_RGBA)
+        if dy != 0.0:
+            add_part(rack, f"rack_tool{k}", "cylinder", [0.025], STEEL,
+                     fromto=[x1, y, z1, x1 + tool_length, y, z1])
+
+    # Position 2: the spindle nose just above the tool tip, the head overhanging from a
+    # column behind (−X0), the table and bed below the gripper.
+    x2, y2, z2 = o2
+    nose = z2 + tool_length + SPINDLE_CLEARANCE
+    machine = add_static_body(spec, "mill")
+    add_part(machine, "mill_quill", "cylinder", [0.09], MACHINE_RGBA,
+             fromto=[x2, y2, nose, x2, y2, nose + 0.40])
+    _box(machine, "mill_head", (x2 - 0.65, y2 - 0.20, nose + 0.40), (x2 + 0.17, y2 + 0.20, 2.35),
+         MACHINE_RGBA)
+    _box(machine, "mill_column", (x2 - 1.00, y2 - 0.35, 0.0), (x2 - 0.65, y2 + 0.35, 2.6),
+         MACHINE_RGBA)
+    _box(machine, "mill_bed", (x2 - 0.65, y2 - 0.35, 0.0), (x2 + 0.60, y2 + 0.35, z2 - 0.35),
+         MACHINE_RGBA)
+    _box(machine, "mill_table", (x2 - 0.55, y2 - 0.30, z2 - 0.35), (x2 + 0.50, y2 + 0.30,
+         z2 - 0.25), STEEL)
+    _box(machine, "mill_vise", (x2 - 0.25, y2 - 0.10, z2 - 0.25), (x2 - 0.05, y2 + 0.10,
+         z2 - 0.15), (0.25, 0.25, 0.28, 1.0))
+    # The chip guard along the table's −Y0 edge (the robot's side) stops just below the
+    # forearm of the elbow-up solutions; an elbow-down forearm comes in lower and hits it.
+    _box(machine, "mill_chip_guard", (x2 - 0.55, y2 - 0.32, z2 - 0.25),
+         (x2 + 0.50, y2 - 0.30, z2 - 0.03), STEEL)
+    return spec.compile()
+
+
+def random_clutter(
+    spec: mujoco.MjSpec,
+    arm: Arm,
+    tree: ArmTree,
+    *,
+    seed: int | np.random.Generator = 0,
+    n_obstacles: int = 8,
+    clearance: float = DEFAULT_RESOLUTION,
+) -> mujoco.MjModel:
+    """Up to ``n_obstacles`` boxes/cylinders near the arm's workspace, seeded by ``seed``.
+
+    Candidates stand on the floor next to the wrist centres of random configurations
+    (drawn from ``seed``'s generator); those that would touch the arm at ``arm.home``
+    (closer than ``clearance``) or overlap the fixed base are dropped, so fewer than
+    ``n_obstacles`` may remain.
+    """
+    rng = np.random.default_rng(seed)
+    lower, upper = arm.joint_limits[:, 0], arm.joint_limits[:, 1]
+    centres = arm.fk(rng.uniform(lower, upper, size=(n_obstacles, arm.dof)))[:, :3, 3]
+    base_model = spec.compile()
+    base_data = mujoco.MjData(base_model)
+    mujoco.mj_kinematics(base_model, base_data)
+    static_arm = [
+        g for g in range(base_model.ngeom)
+        if base_model.geom_bodyid[g] != 0 and base_model.body_weldid[base_model.geom_bodyid[g]] == 0
+        and base_model.geom_contype[g]
+    ]
+    bodies = []
+    for k, centre in enumerate(centres):
+        half = rng.uniform(0.05, 0.2, size=2)
+        # Reach up to somewhere around the sampled wrist centre (never below 0.1 m).
+        top = max(0.1, centre[2] + rng.uniform(-0.4, 0.0))
+        offset = rng.normal(scale=0.25, size=2)
+        xy = centre[:2] + offset
+        footprint = float(np.hypot(*half))
+        if any(
+            np.hypot(*(xy - base_data.geom_xpos[g, :2])) < footprint + base_model.geom_rbound[g]
+            for g in static_arm
+        ):
+            continue
+        body = add_static_body(spec, f"clutter{k}")
+        if rng.random() < 0.5:
+            add_part(body, f"clutter{k}", "box", [half[0], half[1], top / 2], CLUTTER_RGBA,
+                     pos=[xy[0], xy[1], top / 2])
+        else:
+            add_part(body, f"clutter{k}", "cylinder", [half[0], top / 2], CLUTTER_RGBA,
+                     pos=[xy[0], xy[1], top / 2])
+        bodies.append(body)
+    model = spec.compile()
+    checker = CollisionChecker(model, dof=arm.dof, resolution=clearance)
+    touching = {name for c in checker.contacts(arm.home) for name in (c.body1, c.body2)}
+    for body in bodies:
+        if body.name in touching:
+            spec.delete(body)
+    return spec.compile() if touching else model
+
+
+SCENES = {"empty": empty, "milling_cell": milling_cell, "random_clutter": random_clutter}

@@ -1,0 +1,124 @@
+"""The MuJoCo trees reproduce the kinematics exactly; every scene compiles and steps."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from envs.kinematics import ARM_NAMES, make_arm
+from envs.models import TREE_BUILDERS, build_arm_model, build_model, register_tree_builder
+from tests.envs.models.conftest import require_tree, scene_cases
+
+N_CONFIGS = 1000
+
+
+
+def _site_poses(model, arm, q):
+    data = mujoco.MjData(model)
+    site = model.site("ee").id
+    position, rotation = np.empty((len(q), 3)), np.empty((len(q), 3, 3))
+    for i, row in enumerate(q):
+        data.qpos[: arm.dof] = row
+        mujoco.mj_kinematics(model, data)
+        position[i] = data.site_xpos[site]
+        rotation[i] = data.site_xmat[site].reshape(3, 3)
+    return position, rotation
+
+
+@pytest.mark.parametrize("arm_name", ARM_NAMES)
+def test_ee_site_is_the_fk_frame(arm_name):
+    require_tree(arm_name)
+    arm = make_arm(arm_name)
+    model = build_model(arm_name)
+    rng = np.random.default_rng(20240611)
+    q = rng.uniform(arm.joint_limits[:, 0], arm.joint_limits[:, 1], size=(N_CONFIGS, arm.dof))
+    expected = arm.fk(q)
+    position, rotation = _site_poses(model, arm, q)
+    np.testing.assert_allclose(position, expected[:, :3, 3], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(rotation, expected[:, :3, :3], rtol=0, atol=1e-9)
+
+
+def test_non_default_parameters_follow_the_arm():
+    arm = make_arm("anthropomorphic", l1=1.1, l2=0.8, l3=0.7)
+    model = build_arm_model(arm, tool=True)
+    q = np.random.default_rng(7).uniform(
+        arm.joint_limits[:, 0], arm.joint_limits[:, 1], size=(50, arm.dof)
+    )
+    position, rotation = _site_poses(model, arm, q)
+    np.testing.assert_allclose(position, arm.fk(q)[:, :3, 3], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(rotation, arm.fk(q)[:, :3, :3], rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("arm_name", ARM_NAMES)
+def test_joints_are_the_arms_in_order_with_its_limits(arm_name):
+    require_tree(arm_name)
+    arm = make_arm(arm_name)
+    model = build_model(arm_name)
+    assert model.nq == arm.dof
+    for index, (name, kind) in enumerate(zip(arm.joint_names, arm.joint_types, strict=True)):
+        joint = model.joint(name)
+        assert model.jnt_qposadr[joint.id] == index
+        assert joint.type[0] == (
+            mujoco.mjtJoint.mjJNT_HINGE if kind == "revolute" else mujoco.mjtJoint.mjJNT_SLIDE
+        )
+        assert model.jnt_limited[joint.id]
+        # Radians: a degree-compiled spec would have scaled hinge ranges by π/180.
+        np.testing.assert_allclose(model.jnt_range[joint.id], arm.joint_limits[index], atol=1e-12)
+
+
+def test_prismatic_qpos_is_the_displacement():
+    arm = make_arm("cartesian")
+    model = build_model("cartesian")
+    data = mujoco.MjData(model)
+    data.qpos[:] = arm.home
+    data.qpos[:3] = (0.3, -0.2, 0.7)
+    mujoco.mj_kinematics(model, data)
+    np.testing.assert_allclose(data.body("link_s3").xpos, (0.3, -0.2, 0.7), atol=1e-12)
+
+
+@pytest.mark.parametrize(("arm_name", "scene"), scene_cases())
+def test_scene_compiles_and_steps_without_warnings(arm_name, scene):
+    require_tree(arm_name)
+    arm = make_arm(arm_name)
+    model = build_model(arm_name, scene)
+    data = mujoco.MjData(model)
+    data.qpos[: arm.dof] = arm.home
+    for _ in range(20):
+        mujoco.mj_step(model, data)
+    assert all(data.warning[i].number == 0 for i in range(len(data.warning)))
+    assert np.all(np.isfinite(data.qpos))
+
+
+def test_visual_and_collision_geoms_are_separate():
+    model = build_model("anthropomorphic", tool=True)
+    names = [model.geom(g).name for g in range(model.ngeom)]
+    for g, name in enumerate(names):
+        if name.endswith("_vis"):
+            assert model.geom_contype[g] == model.geom_conaffinity[g] == 0
+            assert name[: -len("_vis")] in names
+    assert model.geom("tool").contype[0] != 0
+
+
+def test_milling_cell_is_for_the_anthropomorphic_arm_only():
+    with pytest.raises(ValueError, match="anthropomorphic"):
+        build_model("cartesian", "milling_cell")
+
+
+def test_unknown_names_are_rejected():
+    with pytest.raises(ValueError, match="scene"):
+        build_model("cartesian", "moon")
+    with pytest.raises(ValueError, match="already registered"):
+        register_tree_builder("cartesian")(TREE_BUILDERS["cartesian"])
+
+
+def test_random_clutter_is_seeded():
+    def layout(seed):
+        model = build_model("spherical", "random_clutter", seed=seed)
+        return np.concatenate([model.geom_pos.ravel(), model.geom_size.ravel()])
+
+    empty = build_model("spherical")
+    first = layout(3)
+    assert np.array_equal(first, layout(3))
+    assert not np.array_equal(first, layout(4))
+    assert build_model("spherical", "random_clutter", seed=3).ngeom > empty.ngeom
