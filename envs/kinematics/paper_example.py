@@ -55,3 +55,17 @@ def corrected_table_deg() -> dict[str, np.ndarray]:
     for (row, joint), value in TABLE_MISPRINTS_DEG.items():
         table[row][joint] = value
     return table
+
+
+#: The tool rack of the milling cell (an extension of the worked example, which shows one
+#: slot): slot k holds a tool at position 1 shifted along Y0 by this much (m). Slot 0 is the
+#: paper's position 1; the others continue the rack away from the machine.
+RACK_SLOT_OFFSETS_Y = (0.0, -0.22, -0.44)
+
+
+def rack_slot_poses() -> np.ndarray:
+    """Gripper poses (S, 4, 4) at the rack's slots, in metres (slot 0 = position 1)."""
+    position1 = example_poses()[0]
+    slots = np.repeat(position1[None], len(RACK_SLOT_OFFSETS_Y), axis=0)
+    slots[:, 1, 3] += RACK_SLOT_OFFSETS_Y
+    return slots

@@ -24,6 +24,7 @@ import mujoco
 import numpy as np
 
 from envs.kinematics import Arm
+from envs.kinematics.paper_example import RACK_SLOT_OFFSETS_Y
 
 from .builders import STEEL, ArmTree, add_part, add_static_body
 from .collision import DEFAULT_RESOLUTION, CollisionChecker
@@ -92,20 +93,18 @@ def milling_cell(spec: mujoco.MjSpec, arm: Arm, tree: ArmTree) -> mujoco.MjModel
     tool_length = PAPER_ABC_MM[1] / 1000.0
     x1, y1, z1 = o1
 
-    # Position 1: a cabinet whose top is 0.2 m below the tool, V-block cradles under the
-    # tool's far half (clear of the gripper near O), two more tools in the slots on the −Y0
-    # side (the side away from the machine, which the tool leaves towards).
+    # Position 1: a cabinet whose top is 0.2 m below the tool and V-block cradles under
+    # the tool's far half (clear of the gripper near O), one per rack slot: slot 0 is the
+    # paper's position 1, the others continue the rack on the −Y0 side (away from the
+    # machine). The slots are where tool_changes tasks fetch and return tools.
     rack = add_static_body(spec, "rack")
-    slot_pitch = 0.22
-    _box(rack, "rack_cabinet", (x1 - 0.12, y1 - 2 * slot_pitch - 0.12, 0.0),
-         (x1 + 0.48, y1 + 0.15, z1 - 0.2), RACK_RGBA)
-    for k, dy in enumerate((-2 * slot_pitch, -slot_pitch, 0.0)):
+    offsets = RACK_SLOT_OFFSETS_Y
+    _box(rack, "rack_cabinet", (x1 - 0.12, y1 + min(offsets) - 0.12, 0.0),
+         (x1 + 0.48, y1 + max(offsets) + 0.15, z1 - 0.2), RACK_RGBA)
+    for k, dy in enumerate(offsets):
         y = y1 + dy
         _box(rack, f"rack_cradle{k}", (x1 + 0.22, y - 0.04, z1 - 0.2),
              (x1 + 0.32, y + 0.04, z1 - 0.045), RACK_RGBA)
-        if dy != 0.0:
-            add_part(rack, f"rack_tool{k}", "cylinder", [0.025], STEEL,
-                     fromto=[x1, y, z1, x1 + tool_length, y, z1])
 
     # Position 2: the spindle nose just above the tool tip, the head overhanging from a
     # column behind (−X0), the table and bed below the gripper.
