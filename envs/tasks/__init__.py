@@ -1,0 +1,38 @@
+"""Waypoint-sequence generators: what the arm has to do in one episode.
+
+A generator draws a :class:`Task` from the env's ``np_random`` only. Tasks never touch the
+simulator: where a generator must avoid obstacles it asks the ``is_free`` predicate the env
+hands it (configurations (M, dof) -> (M,) bool, True where collision-free).
+
+================== ============================ ==========================================
+name               arms                         waypoints
+================== ============================ ==========================================
+``random``         every arm                    FK of random collision-free configurations
+``helix``          six-DOF pose arms            a helix, gripper on its Frenet frame (eq. 7)
+``circle``         six-DOF pose arms            a horizontal circle, Frenet frame
+``line``           six-DOF pose arms            a straight line, constant orientation
+``relative_motion`` two-arm systems             a relative-motion profile M34(t)
+``tool_changes``   anthropomorphic, milling cell rack slot ↔ spindle, random slots
+``paper_transfer`` anthropomorphic              the paper's positions 1 → 2
+================== ============================ ==========================================
+"""
+
+from __future__ import annotations
+
+from .base import Task, TaskGenerator
+from .paths import circle, helix, line
+from .random_reachable import random_reachable
+from .relative_motion import relative_motion
+from .tool_transfer import paper_transfer, tool_changes
+
+TASKS: dict[str, TaskGenerator] = {
+    "random": random_reachable,
+    "helix": helix,
+    "circle": circle,
+    "line": line,
+    "relative_motion": relative_motion,
+    "tool_changes": tool_changes,
+    "paper_transfer": paper_transfer,
+}
+
+__all__ = ["TASKS", "Task", "TaskGenerator"]

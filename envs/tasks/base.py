@@ -1,0 +1,81 @@
+"""The task record and the generator protocol."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from envs.kinematics import Arm
+
+#: Collision predicate the env hands to generators: (M, dof) -> (M,) bool, True = free.
+FreePredicate = Callable[[np.ndarray], np.ndarray]
+
+
+@dataclass(frozen=True, eq=False)
+class Task:
+    """One episode's job.
+
+    ``start`` (dof,): the configuration before the first step. ``poses`` (N, 4, 4): the
+    waypoints in order. ``free_start``: the arm already stands *at* waypoint 0 and its
+    first step only chooses that waypoint's branch, at no motion cost (the paper's transfer
+    starts in the rack); otherwise it moves there from ``start``.
+    """
+
+    start: np.ndarray
+    poses: np.ndarray
+    free_start: bool = False
+
+    @property
+    def n_waypoints(self) -> int:
+        return len(self.poses)
+
+
+class TaskGenerator(Protocol):
+    #: Waypoints when the env's ``n_waypoints`` is None.
+    default_waypoints: int
+
+    def __call__(
+        self, arm: Arm, rng: np.random.Generator, n_waypoints: int, is_free: FreePredicate
+    ) -> Task: ...
+
+    def check_arm(self, arm: Arm, scene: str) -> None:
+        """``ValueError`` if the generator cannot serve this arm in this scene."""
+
+
+def task_generator(default_waypoints: int, check_arm: Callable[[Arm, str], None] | None = None):
+    """Decorate a generator function with its default length and applicability check."""
+
+    def decorate(function):
+        function.default_waypoints = default_waypoints
+        function.check_arm = check_arm or (lambda arm, scene: None)
+        return function
+
+    return decorate
+
+
+def sample_free_configurations(
+    arm: Arm, rng: np.random.Generator, count: int, is_free: FreePredicate, max_rounds: int = 50
+) -> np.ndarray:
+    """``count`` configurations drawn uniformly inside the limits and collision-free."""
+    lower, upper = arm.joint_limits[:, 0], arm.joint_limits[:, 1]
+    found: list[np.ndarray] = []
+    have = 0
+    for _ in range(max_rounds):
+        draw = rng.uniform(lower, upper, size=(max(2 * (count - have), 8), arm.dof))
+        free = draw[is_free(draw)]
+        found.append(free)
+        have += len(free)
+        if have >= count:
+            return np.concatenate(found)[:count]
+    raise RuntimeError(
+        f"{arm.name}: found only {have} of {count} collision-free configurations in "
+        f"{max_rounds} rounds; the scene leaves too little free space"
+    )
+
+
+def require_pose_arm(arm: Arm, scene: str) -> None:
+    if arm.target != "pose" or arm.dof != 6 or arm.name.startswith("dual_"):
+        raise ValueError(f"this task needs a six-DOF single arm, not {arm.name!r}")

@@ -1,0 +1,39 @@
+"""Two-arm relative-motion profiles (Vorob'ev 2020): M34(t) sampled into waypoints."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from envs.kinematics import Arm
+
+from .base import FreePredicate, Task, sample_free_configurations, task_generator
+
+#: Attempts at a profile whose every sample is collision-free before accepting one that
+#: is not (its waypoints stay reachable; only some branches then collide).
+MAX_ATTEMPTS = 50
+
+
+def _require_dual(arm: Arm, scene: str) -> None:
+    if not arm.name.startswith("dual_"):
+        raise ValueError(f"relative_motion needs a two-arm system, not {arm.name!r}")
+
+
+@task_generator(default_waypoints=8, check_arm=_require_dual)
+def relative_motion(
+    arm: Arm, rng: np.random.Generator, n_waypoints: int, is_free: FreePredicate
+) -> Task:
+    """The relative pose of link 4 in link 3 along a smooth joint-space sweep.
+
+    Both arms move from one collision-free configuration of the pair to another along a
+    cosine-eased straight line in joint space; the task is the relative pose M34 = fk(q(t))
+    at ``n_waypoints`` instants, so every waypoint is reachable by construction. The agent
+    is free to realise each with another branch, which is the point.
+    """
+    t = 0.5 - 0.5 * np.cos(np.linspace(0.0, np.pi, n_waypoints + 1))[1:, None]
+    profile = None
+    for _ in range(MAX_ATTEMPTS):
+        start, end = sample_free_configurations(arm, rng, 2, is_free)
+        profile = start + t * (end - start)
+        if is_free(profile).all():
+            break
+    return Task(start=start, poses=arm.fk(profile))
