@@ -3,11 +3,13 @@
 Arm 1 (links 1–3) and arm 2 (links 4–6) stand on a common base frame Oxyz. The task is the
 pose of arm 2's output link 4 *relative to* arm 1's output link 3; ``fk(q)`` returns it as
 the 4 × 4 pose of frame 4 expressed in frame 3 (the paper's M34 of eq. 11; its M43 of
-eq. 1 is the inverse). Joints are ordered arm 1's three, then arm 2's three, in the order
-the paper lists its generalised coordinates. Frames follow the paper's text and its
+eq. 1 is the inverse). Joints are ordered arm 1's three, then arm 2's three, each arm from
+its base to its output link (the order a MuJoCo tree lays out qpos). That is the order
+the paper lists its generalised coordinates, except for RRP–RPP's arm 2, which the paper
+lists tip first (s4, s5, φ6). Frames follow the paper's text and its
 (corrected) equations; ``docs/seed003.md`` derives the solutions and lists the misprints.
 
-RRP–RPP (``dual_rrp_rpp``, fig. 1, eqs. 2–7), q = (φ1, φ2, s3, s4, s5, φ6):
+RRP–RPP (``dual_rrp_rpp``, fig. 1, eqs. 2–7), q = (φ1, φ2, s3, φ6, s5, s4):
 
     arm 1: A = (a0, 0, 0);  φ1 about Ox at A;  B = A + Rx(φ1)·(0, 0, l1);
            φ2 about z2 at B;  link 3 slides s3 along x2:
@@ -119,8 +121,11 @@ class DualRrpRppArm(Arm):
     """
 
     name: ClassVar[str] = "dual_rrp_rpp"
-    joint_names: ClassVar[tuple[str, ...]] = ("phi1", "phi2", "s3", "s4", "s5", "phi6")
-    joint_types: ClassVar[tuple[str, ...]] = (REVOLUTE,) * 2 + (PRISMATIC,) * 3 + (REVOLUTE,)
+    #: Arm 2 base to tip: the turn φ6 carries the lift s5, which carries the slide s4.
+    joint_names: ClassVar[tuple[str, ...]] = ("phi1", "phi2", "s3", "phi6", "s5", "s4")
+    joint_types: ClassVar[tuple[str, ...]] = (
+        (REVOLUTE,) * 2 + (PRISMATIC, REVOLUTE) + (PRISMATIC,) * 2
+    )
     branch_labels: ClassVar[tuple[str, ...]] = ("phi1+", "phi1-")
 
     #: OA, arm 1's base on Ox (the paper's a0 in eq. 6; no value given): 0.3 m. The flipped
@@ -139,12 +144,12 @@ class DualRrpRppArm(Arm):
         (-np.pi, np.pi),
         (-170 * _DEG, 170 * _DEG),
         (0.2, 1.2),
-        (0.2, 1.2),
-        (0.0, 1.0),
         (-np.pi, np.pi),
+        (0.0, 1.0),
+        (0.2, 1.2),
     )
     #: Arm 1 tilted 20° and turned back towards arm 2's column: clear of every singularity.
-    home: np.ndarray = (20 * _DEG, 160 * _DEG, 0.6, 0.5, 0.5, 10 * _DEG)
+    home: np.ndarray = (20 * _DEG, 160 * _DEG, 0.6, 10 * _DEG, 0.5, 0.5)
 
     def _check_parameters(self) -> None:
         # a0 > 0 is what turns φ6 into a position constraint when φ1 = 0 or π (see above).
@@ -159,9 +164,9 @@ class DualRrpRppArm(Arm):
 
     def _fk(self, q: np.ndarray) -> np.ndarray:
         r3, p3 = self._arm1(q[..., 0], q[..., 1], q[..., 2])
-        phi6 = q[..., 5]
+        phi6 = q[..., 3]
         r4 = rot_z(phi6)
-        p4 = _apply(r4, np.stack([q[..., 3], np.full_like(phi6, self.b0), q[..., 4]], -1))
+        p4 = _apply(r4, np.stack([q[..., 5], np.full_like(phi6, self.b0), q[..., 4]], -1))
         return _relative_pose(r3, p3, r4, p4)
 
     def _ik_candidates(self, pose: np.ndarray) -> np.ndarray:
@@ -186,7 +191,7 @@ class DualRrpRppArm(Arm):
         s3 = np.where(parallel, np.where(np.abs(gap) <= COINCIDENT_TOL, s3_mid, np.nan), s3)
         s4 = w[..., 0] + s3 * d[..., 0]
         s5 = w[..., 2] + s3 * d[..., 2]
-        return np.stack([phi1, phi2, s3, s4, s5, phi6], -1)
+        return np.stack([phi1, phi2, s3, phi6, s5, s4], -1)
 
     def _singular_angles(self, rotation, t, s3_mid, phi1, phi2, phi6, singular):
         """φ1 = 0 or π: R34 = Rx(φ1)·Rz(θ) with θ = φ6 − ε·φ2 (ε = cos φ1).

@@ -71,7 +71,7 @@ def test_contract_attributes(arm):
 
 
 def test_joint_order_follows_the_paper():
-    assert DualRrpRppArm.joint_names == ("phi1", "phi2", "s3", "s4", "s5", "phi6")
+    assert DualRrpRppArm.joint_names == ("phi1", "phi2", "s3", "phi6", "s5", "s4")
     assert DualRrrPppArm.joint_names == ("phi1", "phi2", "phi3", "s4", "s5", "s6")
     assert DualPprPrrArm.joint_names == ("s1", "s2", "phi3", "s4", "phi5", "phi6")
     for cls in ARM_CLASSES:
@@ -107,7 +107,7 @@ def test_rrp_rpp_frames_match_the_papers_equations():
     m34 = arm.fk(q)
     alpha = np.swapaxes(m34[:, :3, :3], -1, -2)
     a, b, c = np.einsum("nij,nj->ni", -alpha, m34[:, :3, 3]).T
-    f1, f2, s3, s4, s5, f6 = q.T
+    f1, f2, s3, f6, s5, s4 = q.T
     c1, c2, c6 = np.cos([f1, f2, f6])
     s1_, s2_, s6_ = np.sin([f1, f2, f6])
     eq2 = np.stack(
@@ -200,14 +200,14 @@ def test_printed_solutions_hold_only_after_correction():
     """The paper's closed forms against FK (see docs/seed003.md for each misprint)."""
     # RRP-RPP, eq. (7): φ2 = arccos(α31/α32) is wrong, the tangent is right.
     arm = DualRrpRppArm()
-    q = np.array([20 * DEG, 160 * DEG, 0.6, 0.5, 0.5, 120 * DEG])
+    q = np.array([20 * DEG, 160 * DEG, 0.6, 120 * DEG, 0.5, 0.5])
     alpha = arm.fk(q)[:3, :3].T
     assert np.arccos(alpha[2, 2]) == pytest.approx(q[0])
     assert abs(np.arccos(alpha[2, 0] / alpha[2, 1]) - q[1]) > 0.5
     assert np.arctan2(alpha[2, 0], alpha[2, 1]) == pytest.approx(q[1])
     # φ6 = arctg(α13/α23) needs the quadrant: sin φ6 = −α13 / sin φ1.
-    assert abs(np.arctan(alpha[0, 2] / alpha[1, 2]) - q[5]) == pytest.approx(np.pi)
-    assert np.arctan2(-alpha[0, 2], -alpha[1, 2]) == pytest.approx(q[5])
+    assert abs(np.arctan(alpha[0, 2] / alpha[1, 2]) - q[3]) == pytest.approx(np.pi)
+    assert np.arctan2(-alpha[0, 2], -alpha[1, 2]) == pytest.approx(q[3])
 
     # RRR-PPP: φ1 = arctg(α13/α23) has the wrong sign, φ3 = arctg(−α13/α23) is φ1's formula.
     arm = DualRrrPppArm()
@@ -324,7 +324,7 @@ def test_rrp_rpp_coaxial_convention_puts_s3_at_mid_stroke(seed):
     q = sample(arm, 1, seed=100 + seed)[0]
     q[0] = 0.0 if seed % 2 else np.pi
     if seed % 4 == 0:
-        q[5] = q[1] if q[0] == 0.0 else -q[1]  # R34 = I or Rx(π): s3, s4 on one line
+        q[3] = q[1] if q[0] == 0.0 else -q[1]  # R34 = I or Rx(π): s3, s4 on one line
     pose = arm.fk(q)
     solutions, valid = quiet_ik(arm, pose)
     assert_valid_branches_reproduce(arm, pose, solutions, valid)
@@ -339,7 +339,7 @@ def test_rrp_rpp_coaxial_convention_puts_s3_at_mid_stroke(seed):
 
 def test_rrp_rpp_identity_pose_is_solved():
     arm = DualRrpRppArm()
-    q = np.array([0.0, 0.3, 0.5, 0.6, 0.4, 0.3])
+    q = np.array([0.0, 0.3, 0.5, 0.3, 0.4, 0.6])
     pose = arm.fk(q)
     np.testing.assert_allclose(pose[:3, :3], np.eye(3), atol=1e-15)
     solutions, valid = quiet_ik(arm, pose)
@@ -350,7 +350,7 @@ def test_rrp_rpp_identity_pose_is_solved():
 def test_rrp_rpp_slide_in_the_plane_of_the_other_slides():
     """x3 ⟂ y4 (φ2 = φ6 = 0): s3 is free if the lateral offset matches, else impossible."""
     arm = DualRrpRppArm()
-    q = np.array([0.7, 0.0, 0.5, 0.6, 0.4, 0.0])
+    q = np.array([0.7, 0.0, 0.5, 0.0, 0.4, 0.6])
     pose = arm.fk(q)
     solutions, valid = quiet_ik(arm, pose)
     assert valid[0] and not valid[1]

@@ -1,16 +1,13 @@
-"""Arms registered in the kinematics before their MuJoCo tree exists are skipped, visibly."""
+"""Shared parametrisations: every arm in ``ARM_NAMES`` has a MuJoCo tree (none skipped)."""
 
 from __future__ import annotations
 
-import pytest
-
 from envs.kinematics import ARM_NAMES
-from envs.models import SCENES, TREE_BUILDERS
+from envs.models import SCENES
 
-
-def require_tree(arm_name: str) -> None:
-    if arm_name not in TREE_BUILDERS:
-        pytest.skip(f"no MuJoCo tree builder for {arm_name!r} yet")
+#: The two-arm systems: sites ``link3`` and ``link4`` instead of ``ee``.
+TWO_ARM_NAMES = tuple(name for name in ARM_NAMES if name.startswith("dual_"))
+SINGLE_ARM_NAMES = tuple(name for name in ARM_NAMES if name not in TWO_ARM_NAMES)
 
 
 def scene_cases() -> list[tuple[str, str]]:

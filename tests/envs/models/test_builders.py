@@ -8,10 +8,14 @@ import pytest
 
 from envs.kinematics import ARM_NAMES, make_arm
 from envs.models import TREE_BUILDERS, build_arm_model, build_model, register_tree_builder
-from tests.envs.models.conftest import require_tree, scene_cases
+from tests.envs.models.conftest import SINGLE_ARM_NAMES, TWO_ARM_NAMES, scene_cases
 
 N_CONFIGS = 1000
 
+
+def _random_q(arm, n, seed=20240611):
+    rng = np.random.default_rng(seed)
+    return rng.uniform(arm.joint_limits[:, 0], arm.joint_limits[:, 1], size=(n, arm.dof))
 
 
 def _site_poses(model, arm, q):
@@ -26,17 +30,66 @@ def _site_poses(model, arm, q):
     return position, rotation
 
 
-@pytest.mark.parametrize("arm_name", ARM_NAMES)
+@pytest.mark.parametrize("arm_name", SINGLE_ARM_NAMES)
 def test_ee_site_is_the_fk_frame(arm_name):
-    require_tree(arm_name)
     arm = make_arm(arm_name)
     model = build_model(arm_name)
-    rng = np.random.default_rng(20240611)
-    q = rng.uniform(arm.joint_limits[:, 0], arm.joint_limits[:, 1], size=(N_CONFIGS, arm.dof))
+    q = _random_q(arm, N_CONFIGS)
     expected = arm.fk(q)
     position, rotation = _site_poses(model, arm, q)
     np.testing.assert_allclose(position, expected[:, :3, 3], rtol=0, atol=1e-9)
     np.testing.assert_allclose(rotation, expected[:, :3, :3], rtol=0, atol=1e-9)
+
+
+def _relative_site_poses(model, arm, q):
+    """Pose (N, 4, 4) of site ``link4`` expressed in site ``link3``."""
+    data = mujoco.MjData(model)
+    site3, site4 = model.site("link3").id, model.site("link4").id
+    poses = np.tile(np.eye(4), (len(q), 1, 1))
+    for i, row in enumerate(q):
+        data.qpos[: arm.dof] = row
+        mujoco.mj_kinematics(model, data)
+        r3 = data.site_xmat[site3].reshape(3, 3)
+        poses[i, :3, :3] = r3.T @ data.site_xmat[site4].reshape(3, 3)
+        poses[i, :3, 3] = r3.T @ (data.site_xpos[site4] - data.site_xpos[site3])
+    return poses
+
+
+@pytest.mark.parametrize("arm_name", TWO_ARM_NAMES)
+def test_two_arm_relative_pose_of_link4_in_link3_is_fk(arm_name):
+    arm = make_arm(arm_name)
+    model = build_model(arm_name)
+    q = _random_q(arm, N_CONFIGS)
+    np.testing.assert_allclose(_relative_site_poses(model, arm, q), arm.fk(q), rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("arm_name", ARM_NAMES)
+def test_sites_follow_the_contract(arm_name):
+    model = build_model(arm_name)
+    sites = {model.site(s).name for s in range(model.nsite)}
+    expected = {"link3", "link4"} if arm_name in TWO_ARM_NAMES else {"ee"}
+    assert sites == expected
+
+
+@pytest.mark.parametrize(
+    ("arm_name", "params"),
+    [
+        ("dual_rrp_rpp", {"a0": 0.4, "l1": 0.6, "b0": 0.25}),
+        ("dual_rrr_ppp", {"h": 0.9, "l1": 0.3, "l2": 0.4, "l3": 0.25, "b0": 1.0}),
+        ("dual_ppr_prr", {"l1": 1.4, "l3": 0.5, "l4": 0.25, "l5": 0.6}),
+        ("rod_mechanism", {"lp_prime": 0.3, "b": 0.45, "a": 0.2, "gamma": 1.2, "psi": 1.4}),
+    ],
+)
+def test_non_default_parameters_follow_the_new_arms(arm_name, params):
+    arm = make_arm(arm_name, **params)
+    model = build_arm_model(arm)
+    q = _random_q(arm, 50, seed=7)
+    if arm_name in TWO_ARM_NAMES:
+        np.testing.assert_allclose(_relative_site_poses(model, arm, q), arm.fk(q), atol=1e-9)
+    else:
+        position, rotation = _site_poses(model, arm, q)
+        np.testing.assert_allclose(position, arm.fk(q)[:, :3, 3], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(rotation, arm.fk(q)[:, :3, :3], rtol=0, atol=1e-9)
 
 
 def test_non_default_parameters_follow_the_arm():
@@ -52,7 +105,6 @@ def test_non_default_parameters_follow_the_arm():
 
 @pytest.mark.parametrize("arm_name", ARM_NAMES)
 def test_joints_are_the_arms_in_order_with_its_limits(arm_name):
-    require_tree(arm_name)
     arm = make_arm(arm_name)
     model = build_model(arm_name)
     assert model.nq == arm.dof
@@ -79,7 +131,6 @@ def test_prismatic_qpos_is_the_displacement():
 
 @pytest.mark.parametrize(("arm_name", "scene"), scene_cases())
 def test_scene_compiles_and_steps_without_warnings(arm_name, scene):
-    require_tree(arm_name)
     arm = make_arm(arm_name)
     model = build_model(arm_name, scene)
     data = mujoco.MjData(model)
@@ -90,14 +141,16 @@ def test_scene_compiles_and_steps_without_warnings(arm_name, scene):
     assert np.all(np.isfinite(data.qpos))
 
 
-def test_visual_and_collision_geoms_are_separate():
-    model = build_model("anthropomorphic", tool=True)
+@pytest.mark.parametrize("arm_name", ARM_NAMES)
+def test_visual_and_collision_geoms_are_separate(arm_name):
+    model = build_model(arm_name, tool=True)
     names = [model.geom(g).name for g in range(model.ngeom)]
     for g, name in enumerate(names):
         if name.endswith("_vis"):
             assert model.geom_contype[g] == model.geom_conaffinity[g] == 0
             assert name[: -len("_vis")] in names
     assert model.geom("tool").contype[0] != 0
+    assert model.body("tool").id > 0
 
 
 def test_milling_cell_is_for_the_anthropomorphic_arm_only():

@@ -8,15 +8,14 @@ import mujoco
 import numpy as np
 import pytest
 
-from envs.kinematics import make_arm
+from envs.kinematics import ARM_NAMES, make_arm
 from envs.models import CollisionChecker, arm_spec, build_model
-from envs.models.builders import TREE_BUILDERS, add_part, add_static_body
-from tests.envs.models.conftest import require_tree, scene_cases
+from envs.models.builders import add_part, add_static_body
+from tests.envs.models.conftest import TWO_ARM_NAMES, scene_cases
 
 
 @pytest.mark.parametrize(("arm_name", "scene"), scene_cases())
 def test_home_is_collision_free(arm_name, scene):
-    require_tree(arm_name)
     arm = make_arm(arm_name)
     checker = CollisionChecker(build_model(arm_name, scene), dof=arm.dof)
     assert checker.contacts(arm.home) == ()
@@ -93,25 +92,62 @@ def test_free_path_and_its_endpoints():
     np.testing.assert_array_equal(samples[-1], q1)
 
 
-def test_step_respects_the_displacement_bound():
-    # The lever-arm bound really bounds how far geom centres move between samples.
-    for arm_name in TREE_BUILDERS:
-        arm = make_arm(arm_name)
-        model = build_model(arm_name, tool=True)
-        checker = CollisionChecker(model, dof=arm.dof)
-        data = mujoco.MjData(model)
-        rng = np.random.default_rng(11)
-        lower, upper = arm.joint_limits[:, 0], arm.joint_limits[:, 1]
-        for _ in range(20):
-            q0, q1 = rng.uniform(lower, upper, size=(2, arm.dof))
-            samples = checker.path_samples(q0, q1)
-            positions = []
-            for q in samples:
-                data.qpos[:] = q
-                mujoco.mj_kinematics(model, data)
-                positions.append(data.geom_xpos.copy())
-            moved = np.linalg.norm(np.diff(np.array(positions), axis=0), axis=-1).max()
-            assert moved <= checker.resolution + 1e-12
+def _bounding_sphere_points(model, data):
+    """(ngeom, 7, 3): every geom's centre and the six points of its bounding sphere on its
+    local axes, in world coordinates (the lever-arm bound covers the whole sphere)."""
+    offsets = np.concatenate([np.zeros((1, 3)), np.eye(3), -np.eye(3)])
+    local = model.geom_rbound[:, None, None] * offsets[None]
+    rotation = data.geom_xmat.reshape(-1, 3, 3)
+    return data.geom_xpos[:, None] + np.einsum("gij,gkj->gki", rotation, local)
+
+
+@pytest.mark.parametrize("arm_name", ARM_NAMES)
+def test_step_respects_the_displacement_bound(arm_name):
+    # The lever-arm bound really bounds how far geom points (centres and bounding-sphere
+    # points) move between samples, hinges and slides mixed in any order.
+    arm = make_arm(arm_name)
+    model = build_model(arm_name, tool=True)
+    checker = CollisionChecker(model, dof=arm.dof)
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(11)
+    lower, upper = arm.joint_limits[:, 0], arm.joint_limits[:, 1]
+    for _ in range(20):
+        q0, q1 = rng.uniform(lower, upper, size=(2, arm.dof))
+        samples = checker.path_samples(q0, q1)
+        positions = []
+        for q in samples:
+            data.qpos[:] = q
+            mujoco.mj_kinematics(model, data)
+            positions.append(_bounding_sphere_points(model, data))
+        moved = np.linalg.norm(np.diff(np.array(positions), axis=0), axis=-1).max()
+        assert moved <= checker.resolution + 1e-12
+
+
+@pytest.mark.parametrize("arm_name", TWO_ARM_NAMES)
+def test_two_arm_contacts_count_but_not_each_arms_joints(arm_name):
+    arm = make_arm(arm_name)
+    checker = CollisionChecker(build_model(arm_name), dof=arm.dof)
+    arm1 = {"base", *(f"link_{name}" for name in arm.joint_names[:3])}
+    arm2 = {"base2", *(f"link_{name}" for name in arm.joint_names[3:])}
+    chains = [
+        ["base", *(f"link_{n}" for n in arm.joint_names[:3])],
+        ["base2", *(f"link_{n}" for n in arm.joint_names[3:])],
+    ]
+    # Chain order is the physical one, which for RRP–RPP's arm 2 is not the joint order.
+    model = checker.model
+    for chain in chains:
+        chain.sort(key=lambda body: model.body(body).id)
+    adjacent = {frozenset(p) for chain in chains for p in itertools.pairwise(chain)}
+    q = np.random.default_rng(4).uniform(
+        arm.joint_limits[:, 0], arm.joint_limits[:, 1], size=(600, arm.dof)
+    )
+    between = 0
+    for row in q[checker.collides(q)]:
+        for contact in checker.contacts(row):
+            pair = {contact.body1, contact.body2}
+            assert frozenset(pair) not in adjacent
+            between += bool(pair & arm1) and bool(pair & arm2)
+    assert between > 0
 
 
 def test_self_and_floor_contacts_are_reported_but_not_adjacent_links():
