@@ -46,7 +46,6 @@ BLUE = (0.20, 0.42, 0.80, 1.0)
 BASE_HEIGHT = {"dual_rrp_rpp": 0.8, "dual_rrr_ppp": 0.3, "dual_ppr_prr": 0.5}
 #: RRR–PPP: the gantry's tower stands this far (m) beside its ram (+y), which runs past it.
 TOWER_OFFSET = 0.2
-#: RRP–RPP arm 2 from its base to link 4: turn φ6 about Oz, lift s5, radial slide s4.
 
 
 def add_frame_site(body: mujoco.MjsBody, name: str, pos=(0.0, 0.0, 0.0)) -> None:
