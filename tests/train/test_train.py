@@ -1,0 +1,99 @@
+"""python -m train: config files, a real (tiny) training run, resume."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from sb3_contrib import MaskablePPO
+
+import envs
+from train.hyperparams import ALGOS, CONFIG_DIR, hyperparams_for, load_config
+from train.training import RunConfig, resolve
+
+TINY = '{"n_steps": 64, "batch_size": 32, "n_epochs": 2, "eval_freq": 400, ' \
+       '"n_eval_episodes": 2, "checkpoint_freq": 400}'
+ENV = "IKBranch/ToolTransfer-v0"
+
+
+@pytest.mark.parametrize("algo", ALGOS)
+def test_config_keys_are_exactly_the_registered_ids(algo):
+    config = load_config(CONFIG_DIR / f"{algo}.yml")
+    assert set(config) == set(envs.ENV_IDS)
+
+
+def test_unknown_ids_are_errors_not_defaults(tmp_path):
+    bad = tmp_path / "bad.yml"
+    bad.write_text("IKBranch/Nope-v0:\n  n_timesteps: 10\n")
+    with pytest.raises(ValueError, match="not registered env ids"):
+        load_config(bad)
+    partial = tmp_path / "partial.yml"
+    partial.write_text(f"{ENV}:\n  n_timesteps: 10\n")
+    with pytest.raises(ValueError, match="no entry for"):
+        hyperparams_for("IKBranch/Cartesian-v0", "ppo", partial)
+    with pytest.raises(ValueError, match="unknown algorithm"):
+        hyperparams_for(ENV, "dqn")
+
+
+def test_command_line_overrides_win():
+    run = RunConfig(algo="ppo", env_id=ENV, seed=0, run_dir=Path("unused"), timesteps=123,
+                    n_envs=1, env_kwargs={"lookahead": 1}, hyperparams={"learning_rate": 0.01})
+    params = resolve(run)
+    file_params = hyperparams_for(ENV, "ppo")
+    assert params["n_timesteps"] == 123 != file_params["n_timesteps"]
+    assert params["n_envs"] == 1 and params["learning_rate"] == 0.01
+    assert params["env_kwargs"] == {"lookahead": 1}
+    assert params["gamma"] == file_params["gamma"]
+
+
+def run_cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "train", *args], capture_output=True, text=True, timeout=300,
+        check=False,
+    )
+
+
+def test_training_run_writes_a_complete_run_directory_and_resumes(tmp_path):
+    run_dir = tmp_path / "run"
+    common = ["--algo", "maskable_ppo", "--env", ENV, "--seed", "3", "--n-envs", "2",
+              "--run-dir", str(run_dir), "--hyperparams", TINY, "--no-progress"]
+    first = run_cli(*common, "--timesteps", "1000")
+    assert first.returncode == 0, first.stderr
+    for name in ("model.zip", "config.yml", "command.txt", "versions.yml",
+                 "checkpoints/latest.zip", "best/best_model.zip", "evaluations.npz"):
+        assert (run_dir / name).exists(), name
+    assert list((run_dir / "tb").iterdir()), "TensorBoard logs"
+    assert not list(run_dir.rglob("*.partial.zip")), "checkpoints are written atomically"
+    config = yaml.safe_load((run_dir / "config.yml").read_text())
+    assert config["env_id"] == ENV and config["hyperparams"]["n_steps"] == 64
+    assert "stable-baselines3" in yaml.safe_load((run_dir / "versions.yml").read_text())
+    first_steps = MaskablePPO.load(run_dir / "model.zip").num_timesteps
+    assert first_steps >= 1000
+
+    # A second start without --resume refuses to overwrite the run.
+    refused = run_cli(*common, "--timesteps", "1000")
+    assert refused.returncode != 0 and "--resume" in refused.stderr
+
+    resumed = run_cli(*common, "--timesteps", "1600", "--resume")
+    assert resumed.returncode == 0, resumed.stderr
+    model = MaskablePPO.load(run_dir / "model.zip")
+    assert model.num_timesteps >= 1600 > first_steps
+    assert len((run_dir / "command.txt").read_text().splitlines()) == 2
+
+    import gymnasium as gym
+
+    env = gym.make(ENV)
+    obs, _ = env.reset(seed=0)
+    masks = env.unwrapped.action_masks()
+    action, _ = model.predict(obs, action_masks=masks, deterministic=True)
+    assert masks[int(action)]
+    assert np.isfinite(obs).all()
+
+
+def test_unknown_env_id_is_rejected_by_the_cli(tmp_path):
+    result = run_cli("--algo", "ppo", "--env", "IKBranch/Nope-v0", "--run-dir", str(tmp_path))
+    assert result.returncode != 0 and "unknown env id" in result.stderr

@@ -1,0 +1,81 @@
+"""Training callbacks: crash-safe checkpoints and evaluation on fixed held-out tasks."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+from sb3_contrib.common.maskable.callbacks import MaskableEvalCallback
+from stable_baselines3.common.callbacks import BaseCallback
+
+LATEST = "latest.zip"
+
+
+def atomic_save(model, path: str | Path) -> None:
+    """Save ``model`` to ``path`` (a .zip) so that a crash never leaves a half-written file:
+    write beside it, then rename (atomic on POSIX file systems)."""
+    path = Path(path)
+    partial = path.with_name(path.name + ".partial.zip")
+    model.save(partial)
+    os.replace(partial, path)
+
+
+class AtomicCheckpointCallback(BaseCallback):
+    """Every ``save_freq`` calls, save ``ckpt_<steps>.zip`` and refresh ``latest.zip``."""
+
+    def __init__(self, save_freq: int, save_dir: str | Path, verbose: int = 0) -> None:
+        super().__init__(verbose)
+        self.save_freq = save_freq
+        self.save_dir = Path(save_dir)
+
+    def _init_callback(self) -> None:
+        self.save_dir.mkdir(parents=True, exist_ok=True)
+
+    def _on_step(self) -> bool:
+        if self.n_calls % self.save_freq == 0:
+            self.save()
+        return True
+
+    def save(self) -> Path:
+        path = self.save_dir / f"ckpt_{self.num_timesteps}.zip"
+        atomic_save(self.model, path)
+        atomic_save(self.model, self.save_dir / LATEST)
+        return path
+
+
+class HeldOutEvalCallback(MaskableEvalCallback):
+    """Evaluate on the same held-out tasks every time and keep the best model.
+
+    The eval env is reseeded with ``eval_seed`` before each evaluation, so every round
+    scores the policy on identical tasks (seeds the training envs never draw). Works for
+    PPO too (``use_masking=False``). The best mean reward survives ``--resume`` through
+    ``best.json`` beside the best model.
+    """
+
+    def __init__(self, *args, eval_seed: int, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.eval_seed = eval_seed
+
+    def _init_callback(self) -> None:
+        super()._init_callback()
+        record = self._record_path()
+        if record is not None and record.exists():
+            self.best_mean_reward = json.loads(record.read_text())["best_mean_reward"]
+
+    def _record_path(self) -> Path | None:
+        return None if self.best_model_save_path is None else (
+            Path(self.best_model_save_path) / "best.json"
+        )
+
+    def _on_step(self) -> bool:
+        if self.eval_freq > 0 and self.n_calls % self.eval_freq == 0:
+            self.eval_env.seed(self.eval_seed)
+        best_before = self.best_mean_reward
+        result = super()._on_step()
+        if self.best_mean_reward != best_before and self._record_path() is not None:
+            self._record_path().write_text(json.dumps(
+                {"best_mean_reward": float(self.best_mean_reward),
+                 "timesteps": int(self.num_timesteps)}
+            ))
+        return result
