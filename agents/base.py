@@ -1,0 +1,134 @@
+"""What every baseline shares: SB3's ``predict`` signature over an env it reads directly.
+
+The analytic baselines do not learn from observations: they read the task (candidates,
+validity, prices) from the :class:`~envs.ik_branch_env.IKBranchEnv` they were made with,
+exactly as an offline planner would. ``predict`` still takes SB3's arguments, so one loop
+evaluates baselines and trained models alike.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Protocol
+
+import gymnasium as gym
+import numpy as np
+
+from envs.ik_branch_env import IKBranchEnv
+
+
+class Policy(Protocol):
+    """SB3's ``predict``: the one interface evaluation relies on."""
+
+    def predict(
+        self,
+        observation: np.ndarray,
+        state: Any = None,
+        episode_start: np.ndarray | None = None,
+        deterministic: bool = True,
+        action_masks: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, Any]: ...
+
+
+def unwrap(env: gym.Env) -> IKBranchEnv:
+    """The :class:`IKBranchEnv` under any gymnasium wrappers (``gym.make`` adds some)."""
+    base = env.unwrapped
+    if not isinstance(base, IKBranchEnv):
+        raise TypeError(f"baselines need an IKBranchEnv, got {type(base).__name__}")
+    return base
+
+
+class Baseline:
+    """An analytic policy bound to one env; subclasses implement :meth:`choose`.
+
+    A new episode is noticed from ``episode_start``, from the env's task object changing or
+    from its waypoint index going back (SB3 loops do not always pass ``episode_start``),
+    and :meth:`on_episode` runs once per episode before the first choice: planners plan
+    there, so planning is part of the first ``predict`` call and amortises over the episode.
+    """
+
+    #: Name in ``agents.BASELINES``.
+    name: str = ""
+
+    def __init__(self, env: gym.Env) -> None:
+        self.env = unwrap(env)
+        self._task = None
+        self._last_index = 0
+
+    # ------------------------------------------------------------------ SB3 interface
+    def predict(
+        self,
+        observation: np.ndarray,
+        state: Any = None,
+        episode_start: np.ndarray | None = None,
+        deterministic: bool = True,
+        action_masks: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, Any]:
+        """The branch for the env's next waypoint; ``(action, state)`` like SB3.
+
+        An unbatched observation gives a 0-d action array, a batch of one a (1,) array
+        (SB3's convention). The baseline acts on its own env, so larger batches are refused.
+        """
+        batched = np.ndim(observation) == len(self.env.observation_space.shape) + 1
+        if batched and np.shape(observation)[0] != 1:
+            raise ValueError("a baseline acts on the one env it was made with: batch size 1")
+        env = self.env
+        if env.task is None:
+            raise RuntimeError("reset the env before asking a baseline for an action")
+        # A new episode: flagged, or a new task object, or the env went back in the task
+        # (a generator could hand out the same Task object twice).
+        if np.any(episode_start) or env.task is not self._task or env.index < self._last_index:
+            self._task = env.task
+            self.on_episode()
+        self._last_index = env.index
+        if env.index >= env.task.n_waypoints:  # episode over: any action, as the env allows
+            branch = 0
+        else:
+            mask = env.action_masks()
+            if action_masks is not None:  # SB3 semantics: the caller's mask has the last word
+                mask = mask & np.asarray(action_masks, dtype=bool).reshape(-1)
+            branch = int(self.choose(env.index, mask))
+            if not mask[branch]:
+                raise AssertionError(f"{self.name} chose masked branch {branch}")
+        action = np.array(branch, dtype=np.int64)
+        return (action[None] if batched else action), state
+
+    # -------------------------------------------------------------------- subclasses
+    def on_episode(self) -> None:
+        """Called once at the start of every episode (the env has just been reset)."""
+
+    def choose(self, waypoint: int, mask: np.ndarray) -> int:
+        """The branch for ``waypoint`` among ``mask`` (K,) bool; never a masked one."""
+        raise NotImplementedError
+
+    # ----------------------------------------------------------------------- helpers
+    def current_row(self, waypoint: int) -> int:
+        """Row of ``edge_rewards(waypoint)`` the arm stands in: 0 for the task's start,
+        else the branch of ``waypoint − 1`` whose configuration the arm holds (found from
+        the env's state, so it is right whoever chose the earlier actions)."""
+        if waypoint == 0:
+            return 0
+        env = self.env
+        rows = np.flatnonzero(np.all(env.candidates[waypoint - 1] == env.q, axis=-1))
+        if len(rows) == 0:
+            raise RuntimeError(f"the arm stands at no candidate of waypoint {waypoint - 1}")
+        return int(rows[0])  # duplicate candidates are the same configuration: same prices
+
+    def move_travel(self, waypoint: int) -> np.ndarray:
+        """(K,) travel of moving from where the arm stands to each branch of ``waypoint``
+        (NaN for invalid ones); zero at a free start, where the first step costs no motion."""
+        env = self.env
+        targets = env.candidates[waypoint]
+        if waypoint == 0 and env.task.free_start:
+            return np.where(env.valid[0], 0.0, np.nan)
+        return env.cost.travel(env.q, targets)
+
+
+def first_within(costs: np.ndarray, tolerance: float = 1e-9) -> int:
+    """Flat index of the first entry within ``tolerance`` (relative) of the least finite
+    cost: ties broken by index, immune to round-off (1.1→2.1 and 1.2→2.2 of the paper
+    differ by ~1e-13 rad)."""
+    flat = np.ravel(costs)
+    finite = np.isfinite(flat)
+    best = flat[finite].min()
+    slack = tolerance * max(1.0, abs(best))
+    return int(np.flatnonzero(finite & (flat <= best + slack))[0])

@@ -1,0 +1,78 @@
+"""Trained SB3 models behind the same ``predict`` as the baselines.
+
+A zip saved by ``PPO.save`` or ``MaskablePPO.save`` is recognised from its ``data`` record
+(the module of its policy class) without unpickling anything, then loaded by the right
+class; a MaskablePPO model is always given the env's action masks.
+"""
+
+from __future__ import annotations
+
+import json
+import zipfile
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from sb3_contrib import MaskablePPO
+from sb3_contrib.common.maskable.policies import MaskableActorCriticPolicy
+from stable_baselines3 import PPO
+from stable_baselines3.common.base_class import BaseAlgorithm
+
+from .base import unwrap
+
+
+def model_class(path: str | Path) -> type[BaseAlgorithm]:
+    """PPO or MaskablePPO, from the policy class recorded in the zip."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            data = json.loads(archive.read("data"))
+    except (OSError, KeyError, zipfile.BadZipFile, json.JSONDecodeError) as error:
+        raise ValueError(f"{path}: not an SB3 model zip ({error})") from error
+    module = str(data.get("policy_class", {}).get("__module__", ""))
+    if "maskable" in module:
+        return MaskablePPO
+    if module.startswith("stable_baselines3") and "clip_range" in data:
+        return PPO
+    raise ValueError(f"{path}: a {module or 'unknown'} policy; expected PPO or MaskablePPO")
+
+
+class SB3Policy:
+    """An SB3 model with the baselines' ``predict``; masks reach MaskablePPO only."""
+
+    def __init__(self, model: BaseAlgorithm, env: gym.Env | None = None, name: str = "") -> None:
+        self.model = model
+        self.env = None if env is None else unwrap(env)
+        self.name = name
+        self.maskable = isinstance(model.policy, MaskableActorCriticPolicy)
+
+    @classmethod
+    def load(cls, path: str | Path, env: gym.Env | None = None) -> SB3Policy:
+        """Load ``path`` with the class it was saved from (CPU), checked against ``env``."""
+        algorithm = model_class(path)
+        model = algorithm.load(path, device="cpu")
+        if algorithm is MaskablePPO and not isinstance(model.policy, MaskableActorCriticPolicy):
+            raise ValueError(f"{path}: recorded as MaskablePPO but its policy cannot mask")
+        if env is not None and model.observation_space.shape != env.observation_space.shape:
+            raise ValueError(
+                f"{path}: trained on observations of shape {model.observation_space.shape}, "
+                f"the env gives {env.observation_space.shape} (same env id and --env-kwargs, "
+                "e.g. lookahead, as in training?)"
+            )
+        return cls(model, env, name=Path(path).stem)
+
+    def predict(
+        self,
+        observation: np.ndarray,
+        state: Any = None,
+        episode_start: np.ndarray | None = None,
+        deterministic: bool = True,
+        action_masks: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, Any]:
+        if not self.maskable:
+            return self.model.predict(observation, state, episode_start, deterministic)
+        if action_masks is None and self.env is not None:
+            action_masks = self.env.action_masks()
+        return self.model.predict(
+            observation, state, episode_start, deterministic, action_masks=action_masks
+        )

@@ -1,0 +1,134 @@
+"""The DP oracle against brute force, against the env's own bookkeeping, and its horizon."""
+
+from __future__ import annotations
+
+import itertools
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import envs  # noqa: F401
+from agents import DPOracle, RecedingDP, ladder_q_tables, make_baseline
+
+#: (env id, kwargs, seeds): arms with 1–8 branches, invalid branches (rod), terminal
+#: collisions (spherical, rod, milling cell), collisions that do not end the episode, and a
+#: time term. Dual-arm ids are absent while their models do not build.
+CASES = [
+    ("IKBranch/RodMechanism-v0", {"n_waypoints": 4}, (0, 1, 2)),
+    ("IKBranch/RodMechanism-v0", {"n_waypoints": 4, "time_weight": 0.5}, (3,)),
+    ("IKBranch/Spherical-v0", {"n_waypoints": 5}, (0, 1)),
+    ("IKBranch/Cylindrical-v0", {"n_waypoints": 5, "terminate_on_collision": False}, (0, 1)),
+    ("IKBranch/ToolTransfer-v0", {"n_waypoints": 3}, (0, 1)),
+    ("IKBranch/Anthropomorphic-v0", {"n_waypoints": 3}, (4,)),
+]
+PARAMS = [
+    pytest.param(env_id, kwargs, seed, id=f"{env_id.split('/')[1]}-{i}-s{seed}")
+    for i, (env_id, kwargs, seeds) in enumerate(CASES)
+    for seed in seeds
+]
+
+
+def brute_force(env) -> float:
+    """The best return over every mask-respecting action sequence, from the price table.
+
+    Each sequence is walked forward: a terminal edge ends it (later actions do not exist).
+    """
+    n, k = env.task.n_waypoints, env.arm.n_branches
+    edges = [env.edge_rewards(i) for i in range(n)]
+    best = -np.inf
+    for actions in itertools.product(range(k), repeat=n):
+        total, row = 0.0, 0
+        for i, branch in enumerate(actions):
+            if not env.valid[i, branch]:
+                total = -np.inf
+                break
+            reward, terminal = edges[i]
+            total += reward[row, branch]
+            if terminal[row, branch]:
+                break
+            row = branch
+        best = max(best, total)
+    return float(best)
+
+
+def play(env, policy, seed: int) -> tuple[float, list[int]]:
+    obs, _ = env.reset(seed=seed)
+    total, actions, done = 0.0, [], False
+    while not done:
+        action, _ = policy.predict(obs, action_masks=env.unwrapped.action_masks())
+        obs, reward, terminated, truncated, _ = env.step(action)
+        total += reward
+        actions.append(int(action))
+        done = terminated or truncated
+    return total, actions
+
+
+@pytest.mark.parametrize(("env_id", "kwargs", "seed"), PARAMS)
+def test_oracle_is_the_brute_force_optimum_and_the_env_pays_its_plan(env_id, kwargs, seed):
+    env = gym.make(env_id, **kwargs)
+    oracle = make_baseline("dp_oracle", env)
+    paid, actions = play(env, oracle, seed)
+    assert actions == oracle.plan
+    assert paid == pytest.approx(oracle.planned_return, rel=0, abs=1e-9)
+    assert oracle.planned_return == pytest.approx(brute_force(env.unwrapped), rel=0, abs=1e-9)
+
+
+@pytest.mark.parametrize(("env_id", "kwargs", "seed"), PARAMS[::2])
+def test_receding_dp_with_the_whole_horizon_is_the_oracle(env_id, kwargs, seed):
+    n = kwargs["n_waypoints"]
+    oracle_env, receding_env = gym.make(env_id, **kwargs), gym.make(env_id, **kwargs)
+    oracle_return, oracle_actions = play(oracle_env, DPOracle(oracle_env), seed)
+    for horizon in (n, n + 3):
+        paid, actions = play(receding_env, RecedingDP(receding_env, horizon=horizon), seed)
+        assert actions == oracle_actions
+        assert paid == pytest.approx(oracle_return, rel=0, abs=1e-9)
+    short, _ = play(receding_env, RecedingDP(receding_env, horizon=1), seed)
+    assert short <= oracle_return + 1e-9
+
+
+def test_oracle_brute_force_by_replaying_every_sequence_in_the_env():
+    """Independent of ``edge_rewards``: all K^N sequences played through ``step``."""
+    env = gym.make("IKBranch/Spherical-v0", n_waypoints=4)
+    oracle = DPOracle(env)
+    paid, _ = play(env, oracle, seed=1)
+    best = -np.inf
+    k, n = env.unwrapped.arm.n_branches, 4
+    for actions in itertools.product(range(k), repeat=n):
+        env.reset(seed=1)
+        total = 0.0
+        for action in actions:
+            _, reward, terminated, _, _ = env.step(action)
+            total += reward
+            if terminated:
+                break
+        best = max(best, total)
+    assert paid == pytest.approx(best, rel=0, abs=1e-9)
+
+
+def test_terminal_edges_end_the_plan():
+    """A crash that ends the episode is worth its own reward only: nothing after it."""
+    reward = [np.array([[-1.0, -50.0]]), np.array([[-100.0, -100.0], [-1.0, -1.0]])]
+    terminal = [np.array([[False, True]]), np.array([[True, True], [True, True]])]
+    tables = ladder_q_tables(list(zip(reward, terminal, strict=True)), np.ones((2, 2), bool))
+    # Branch 0 then the only continuation: -101; the terminal crash at once: -50.
+    assert tables[0][0].tolist() == [-101.0, -50.0]
+
+
+def test_oracle_replans_when_the_env_draws_a_new_task_without_episode_start():
+    env = gym.make("IKBranch/RodMechanism-v0", n_waypoints=4)
+    oracle = DPOracle(env)
+    obs, _ = env.reset(seed=0)
+    oracle.predict(obs)
+    first = oracle.planned_return
+    obs, _ = env.reset(seed=1)
+    oracle.predict(obs)  # no episode_start: the task object changed
+    assert oracle.planned_return != first
+    assert oracle.planned_return == pytest.approx(brute_force(env.unwrapped), abs=1e-9)
+
+
+def test_receding_horizon_defaults_to_what_the_observation_shows():
+    env = gym.make("IKBranch/RodMechanism-v0", lookahead=3)
+    assert RecedingDP(env).horizon == 4
+    with pytest.raises(ValueError, match="horizon"):
+        RecedingDP(env, horizon=0)

@@ -1,0 +1,126 @@
+"""Compare policies on the same tasks: ``python -m train.evaluate``.
+
+    python -m train.evaluate --env IKBranch/ToolTransfer-v0 --policy paper_rule \\
+        --policy receding_dp --policy runs/ppo.zip --episodes 50 --seed 0 \\
+        --json results.json --plot results.png
+
+``--policy`` is repeatable: a baseline name (``paper_rule``, ``paper_pair_rule``,
+``dp_oracle``, ``receding_dp[:H]``, ``random[:SEED]``, ``fixed[:BRANCH]``) or an SB3 model
+zip (PPO or MaskablePPO, recognised from the file). The DP oracle always runs: the
+optimality gap is measured against it. Episode e of every policy uses task seed S + e.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any
+
+from agents.evaluation import evaluate
+
+COLUMNS = (
+    ("policy", "{}"),
+    ("success", "{:.0%}"),
+    ("return", "{}"),
+    ("travel rad", "{:.3f}"),
+    ("travel deg", "{:.1f}"),
+    ("time s", "{:.2f}"),
+    ("collision", "{:.0%}"),
+    ("invalid", "{:.0%}"),
+    ("gap", "{}"),
+    ("ms/step", "{:.3f}"),
+)
+
+
+def table(results: dict[str, Any]) -> str:
+    """The results as an aligned text table, one row per policy."""
+    rows = [[title for title, _ in COLUMNS]]
+    for name, m in results["policies"].items():
+        gap = "n/a" if m["optimality_gap"] is None else f"{m['optimality_gap']:.2%}"
+        values = (
+            name, m["success_rate"], f"{m['mean_return']:.3f} ± {m['std_return']:.3f}",
+            m["mean_travel"], m["mean_travel_deg"], m["mean_time"], m["collision_rate"],
+            m["invalid_rate"], gap, m["decision_ms"],
+        )
+        rows.append([fmt.format(v) for (_, fmt), v in zip(COLUMNS, values, strict=True)])
+    widths = [max(len(row[c]) for row in rows) for c in range(len(COLUMNS))]
+    lines = ["  ".join(cell.rjust(w) if c else cell.ljust(w)
+                       for c, (cell, w) in enumerate(zip(row, widths, strict=True)))
+             for row in rows]
+    lines.insert(1, "  ".join("-" * w for w in widths))
+    return "\n".join(lines)
+
+
+def plot(results: dict[str, Any], path: str | Path) -> None:
+    """Bars of return, travel (degrees) and success per policy; whiskers one std."""
+    import matplotlib
+
+    matplotlib.use("Agg")  # files only: no display needed
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    names = list(results["policies"])
+    metrics = [results["policies"][n] for n in names]
+    panels = (
+        ("return", [m["mean_return"] for m in metrics], [m["std_return"] for m in metrics]),
+        ("travel (deg)", [np.degrees(m["mean_travel"]) for m in metrics],
+         [np.degrees(m["std_travel"]) for m in metrics]),
+        ("success rate", [m["success_rate"] for m in metrics], None),
+    )
+    figure, axes = plt.subplots(1, 3, figsize=(4 + 1.2 * len(names), 4), layout="constrained")
+    x = np.arange(len(names))
+    for axis, (title, means, spread) in zip(axes, panels, strict=True):
+        axis.bar(x, means, yerr=spread, capsize=4, color="tab:blue", alpha=0.8)
+        axis.set_title(title)
+        axis.set_xticks(x, names, rotation=30, ha="right")
+        axis.grid(axis="y", alpha=0.3)
+    axes[2].set_ylim(0, 1.05)
+    figure.suptitle(
+        f"{results['env']}: {results['episodes']} episodes from seed {results['seed']} "
+        "(whiskers: ±1 std)"
+    )
+    figure.savefig(path, dpi=120)
+    plt.close(figure)
+
+
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(
+        prog="python -m train.evaluate", description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--env", required=True, help="env id, e.g. IKBranch/Anthropomorphic-v0")
+    parser.add_argument("--env-kwargs", type=json.loads, default={},
+                        help='JSON dict of env arguments, e.g. \'{"n_waypoints": 12}\'')
+    parser.add_argument("--policy", action="append", required=True, dest="policies",
+                        help="baseline name or SB3 model .zip (repeatable)")
+    parser.add_argument("--episodes", type=int, default=20)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--json", type=Path, help="write the results here")
+    parser.add_argument("--plot", type=Path, help="draw the comparison here (.png)")
+    args = parser.parse_args(argv)
+    if not isinstance(args.env_kwargs, dict):
+        parser.error("--env-kwargs must be a JSON object")
+    if args.episodes < 1:
+        parser.error("--episodes must be >= 1")
+    return args
+
+
+def main(argv: list[str] | None = None) -> dict[str, Any]:
+    args = parse_args(argv)
+    try:
+        results = evaluate(args.env, args.policies, args.episodes, args.seed, args.env_kwargs)
+    except ValueError as error:  # unknown policy, bad zip, mismatched env: a usage error
+        raise SystemExit(f"error: {error}") from error
+    print(table(results))
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(results, indent=2) + "\n")
+    if args.plot:
+        args.plot.parent.mkdir(parents=True, exist_ok=True)
+        plot(results, args.plot)
+    return results
+
+
+if __name__ == "__main__":
+    main()
