@@ -17,7 +17,7 @@ $(STAMP): pyproject.toml
 install: $(STAMP)
 
 demo: $(STAMP)
-	MUJOCO_GL=egl $(BIN)/python -m envs.kinematics.worked_example
+	MUJOCO_GL=egl $(BIN)/python -m train.demo
 
 test: $(STAMP)
 	$(BIN)/ruff check .
