@@ -60,8 +60,13 @@ class TransitionCost:
         )
 
     def travel(self, q0, q1) -> np.ndarray:
-        """(…,) weighted joint travel, broadcasting q0 and q1 (…, dof)."""
-        return np.abs(np.asarray(q1) - np.asarray(q0)) @ self.weights
+        """(…,) weighted joint travel, broadcasting q0 and q1 (…, dof).
+
+        A sum over the last axis rather than a matrix product: BLAS sums a row in an order
+        that depends on the batch shape, and one move must cost the same to the last bit
+        whether it is priced alone (``step``) or with others (``edge_rewards``, planners).
+        """
+        return (np.abs(np.asarray(q1) - np.asarray(q0)) * self.weights).sum(axis=-1)
 
     def time(self, q0, q1) -> np.ndarray:
         """(…,) move time with every joint at its speed limit, the slowest setting the pace."""

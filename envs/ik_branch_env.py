@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numbers
 import os
 
 os.environ.setdefault("MUJOCO_GL", "egl")
@@ -19,6 +20,16 @@ from envs.tasks import TASKS, Task
 
 #: Path-collision results kept per env (the milling cell's finite pose set fits many times).
 PATH_CACHE_SIZE = 200_000
+#: Waypoint poses whose IK candidates (and their endpoint collisions) are kept per env: a
+#: task with a finite pose set (the milling cell's tool changes) solves each pose once.
+POSE_CACHE_SIZE = 50_000
+
+
+def _integer(value, name: str, minimum: int) -> int:
+    """``value`` as an int (numpy integers too), ``ValueError`` unless an integer >= minimum."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < minimum:
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
 
 
 class IKBranchEnv(gym.Env):
@@ -61,11 +72,13 @@ class IKBranchEnv(gym.Env):
     (prismatic joints scaled by ``prismatic_scale`` rad/m), ``reward_time = −time_weight ·
     max_j |Δq_j| / v_j``, ``reward_collision = −collision_penalty`` if the path collides,
     ``reward_invalid = −invalid_penalty`` for an invalid branch, and, when either ends the
-    episode before the last waypoint, ``reward_unfinished = −max_transition_cost`` for each
-    waypoint left unvisited (the dearest move possible: so crashing is never cheaper than
-    finishing). ``info`` carries each term and the raw ``travel`` (rad-equivalents) and
-    ``time`` (s); the reward is exactly their sum. ``edge_rewards(i)`` gives the same
-    prices for every move into waypoint i, for planners.
+    episode early, ``reward_unfinished = −max_transition_cost`` for each waypoint left
+    unvisited (an invalid branch leaves its own waypoint unvisited too). That is the
+    dearest move possible, so neither crashing nor an invalid branch is ever cheaper than
+    finishing, and with ``invalid_penalty ≥ collision_penalty`` an invalid branch is never
+    cheaper than any valid one. ``info`` carries each term and the raw ``travel``
+    (rad-equivalents) and ``time`` (s); the reward is exactly their sum.
+    ``edge_rewards(i)`` gives the same prices for every move into waypoint i, for planners.
 
     ## Starting state
     ``reset`` draws a task from the env's ``np_random`` (seed it with ``reset(seed=…)``);
@@ -147,13 +160,19 @@ class IKBranchEnv(gym.Env):
         self.arm = make_arm(arm, **(arm_params or {}))
         self._generator = TASKS[task]
         self._generator.check_arm(self.arm, scene)
-        self.n_waypoints = self._generator.default_waypoints if n_waypoints is None else n_waypoints
-        if not isinstance(self.n_waypoints, int) or isinstance(self.n_waypoints, bool) or (
-            self.n_waypoints < 1
+        self.n_waypoints = _integer(
+            self._generator.default_waypoints if n_waypoints is None else n_waypoints,
+            "n_waypoints", 1,
+        )
+        if getattr(self._generator, "fixed_waypoints", False) and (
+            self.n_waypoints != self._generator.default_waypoints
         ):
-            raise ValueError(f"n_waypoints must be an integer >= 1, got {n_waypoints!r}")
-        if not isinstance(lookahead, int) or isinstance(lookahead, bool) or lookahead < 0:
-            raise ValueError(f"lookahead must be an integer >= 0, got {lookahead!r}")
+            raise ValueError(
+                f"task {task!r} has exactly {self._generator.default_waypoints} waypoints, "
+                f"got n_waypoints={n_waypoints!r}"
+            )
+        lookahead = _integer(lookahead, "lookahead", 0)
+        scene_seed = _integer(scene_seed, "scene_seed", 0)
         for name, value in (("collision_penalty", collision_penalty),
                             ("invalid_penalty", invalid_penalty)):
             if not np.isfinite(value) or value < 0:
@@ -184,6 +203,7 @@ class IKBranchEnv(gym.Env):
         )
         self._path_cache: dict[bytes, bool] = {}
         self._endpoint_cache: dict[bytes, bool] = {}
+        self._pose_cache: dict[bytes, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         self._renderer = None
 
         lower, upper = self.arm.joint_limits[:, 0], self.arm.joint_limits[:, 1]
@@ -199,6 +219,13 @@ class IKBranchEnv(gym.Env):
         size = max(stop for _, stop in self.observation_layout.values())
         self.observation_space = spaces.Box(-1.0, 1.0, shape=(size,), dtype=np.float32)
         self.action_space = spaces.Discrete(self.arm.n_branches)
+
+        self._q_slice = slice(*self.observation_layout["q"])
+        self._travel0 = slice(*self.observation_layout["slot0/travel"])
+        self._path0 = slice(*self.observation_layout["slot0/path_collision"])
+        self._all_branches = np.arange(self.arm.n_branches)
+        self._moves_key: tuple | None = None
+        self._moves_cache: dict[str, np.ndarray] = {}
 
         self.task: Task | None = None
         self.candidates = self.valid = self.endpoint_collision = None
@@ -224,14 +251,13 @@ class IKBranchEnv(gym.Env):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
         self.task = self._generator(self.arm, self.np_random, self.n_waypoints, self._is_free)
-        self.candidates, self.valid = self.arm.ik(self.task.poses)
+        self.candidates, self.valid, self.endpoint_collision = self._solve(self.task.poses)
         if not self.valid.any(axis=-1).all():
             raise RuntimeError("task generator produced a waypoint without a valid branch")
-        self.endpoint_collision = np.zeros_like(self.valid)
-        self.endpoint_collision[self.valid] = self._endpoints_collide(self.candidates[self.valid])
         self.q = np.array(self.task.start, dtype=np.float64)
         self.index = 0
         self.collided = self.invalid = False
+        self._prepare_observations()
         return self._observation(), {"waypoint": 0}
 
     def action_masks(self) -> np.ndarray:
@@ -251,8 +277,7 @@ class IKBranchEnv(gym.Env):
         if branch != action or not 0 <= branch < self.arm.n_branches:
             raise ValueError(f"action must be a branch index in [0, {self.arm.n_branches})")
         waypoint = self.index
-        terms = self._transition_terms(self.q[None], waypoint, np.array([branch]))
-        terms = {name: value.item() for name, value in terms.items()}
+        terms = {name: value[branch].item() for name, value in self._moves().items()}
         reward = terms.pop("reward")
         terminated = terms.pop("terminal")
         if not terms["invalid"]:
@@ -293,6 +318,18 @@ class IKBranchEnv(gym.Env):
             reward[row], terminal[row] = terms["reward"], terms["terminal"]
         return reward, terminal
 
+    def _moves(self) -> dict[str, np.ndarray]:
+        """``_transition_terms`` of every branch from where the arm stands into the next
+        waypoint: the observation's slot-0 travel and path collisions and what ``step``
+        pays, computed once per state (the same call ``edge_rewards`` makes per row)."""
+        key = (self.index, self.q.tobytes())
+        if self._moves_key != key:
+            self._moves_cache = self._transition_terms(
+                self.q[None], self.index, self._all_branches
+            )
+            self._moves_key = key
+        return self._moves_cache
+
     def _transition_terms(
         self, origin: np.ndarray, waypoint: int, branches: np.ndarray
     ) -> dict[str, np.ndarray]:
@@ -312,13 +349,15 @@ class IKBranchEnv(gym.Env):
             travel, duration = self.cost.travel(origin, targets), self.cost.time(origin, targets)
             if (~invalid).any():
                 collision[~invalid] = self._paths_collide(origin[0], targets[~invalid])
-        terminal = invalid | (collision & self.terminate_on_collision) | (waypoint == n - 1)
-        early = terminal & (waypoint < n - 1)
+        crashed = collision & self.terminate_on_collision
+        terminal = invalid | crashed | (waypoint == n - 1)
+        # Waypoints an early end leaves unvisited: an invalid branch never reaches its own.
+        skipped = np.where(invalid, n - waypoint, np.where(crashed, n - 1 - waypoint, 0))
         reward_travel = -self.cost.travel_weight * travel
         reward_time = -self.cost.time_weight * duration
         reward_collision = np.where(collision, -self.collision_penalty, 0.0)
         reward_invalid = np.where(invalid, -self.invalid_penalty, 0.0)
-        reward_unfinished = np.where(early, -(n - 1 - waypoint) * self.max_transition_cost, 0.0)
+        reward_unfinished = np.where(skipped > 0, -skipped * self.max_transition_cost, 0.0)
         return {
             "reward": reward_travel + reward_time + reward_collision + reward_invalid
             + reward_unfinished,
@@ -354,6 +393,36 @@ class IKBranchEnv(gym.Env):
             self._renderer = None
 
     # ---------------------------------------------------------------- collision helpers
+    def _solve(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``candidates`` (N, K, dof), ``valid`` (N, K), ``endpoint_collision`` (N, K).
+
+        One batched IK call and one batched endpoint check for the poses not seen before
+        (results are cached per pose: IK is row-wise exact, so a cached row is the row a
+        fresh call would give).
+        """
+        poses = np.ascontiguousarray(poses, dtype=np.float64)
+        cache = self._pose_cache
+        keys = [pose.tobytes() for pose in poses]
+        rows = [cache.get(key) for key in keys]
+        missing = list({keys[i]: i for i, row in enumerate(rows) if row is None}.values())
+        if missing:
+            candidates, valid = self.arm.ik(poses[missing])
+            endpoint = np.zeros_like(valid)
+            endpoint[valid] = self._endpoints_collide(candidates[valid])
+            new = {
+                keys[i]: (candidates[row], valid[row], endpoint[row])
+                for row, i in enumerate(missing)
+            }
+            if len(cache) + len(new) > POSE_CACHE_SIZE:
+                cache.clear()
+            cache.update(new)
+            rows = [new[key] if row is None else row for key, row in zip(keys, rows, strict=True)]
+        return (
+            np.array([row[0] for row in rows]),
+            np.array([row[1] for row in rows]),
+            np.array([row[2] for row in rows]),
+        )
+
     def _is_free(self, q: np.ndarray) -> np.ndarray:
         return ~self._endpoints_collide(q)
 
@@ -371,70 +440,81 @@ class IKBranchEnv(gym.Env):
     def _cached(cache: dict, rows: np.ndarray, compute, prefix: bytes = b"") -> np.ndarray:
         rows = np.ascontiguousarray(rows, dtype=np.float64)
         keys = [prefix + row.tobytes() for row in rows]
-        missing = [i for i, key in enumerate(keys) if key not in cache]
+        found = [cache.get(key) for key in keys]
+        missing = [i for i, value in enumerate(found) if value is None]
         if missing:
+            values = compute(rows[missing])
+            # Clearing a full cache must not lose this call's hits: fill from ``found``.
             if len(cache) + len(missing) > PATH_CACHE_SIZE:
                 cache.clear()
-            for i, value in zip(missing, compute(rows[missing]), strict=True):
-                cache[keys[i]] = bool(value)
-        return np.array([cache[key] for key in keys], dtype=bool)
+            for i, value in zip(missing, values, strict=True):
+                found[i] = cache[keys[i]] = bool(value)
+        return np.array(found, dtype=bool)
 
     # ------------------------------------------------------------------- observation
     def _normalise(self, q: np.ndarray) -> np.ndarray:
         return (q - self._centre) / self._half_range
 
-    def _observation(self) -> np.ndarray:
-        obs = np.zeros(self.observation_space.shape, dtype=np.float64)
-        layout, k = self.observation_layout, self.arm.n_branches
+    def _prepare_observations(self) -> None:
+        """Everything of the observation a task fixes, once per (new) task.
 
-        def put(name, values):
-            start, stop = layout[name]
-            obs[start:stop] = np.ravel(values)
-
-        put("q", self._normalise(self.q))
-        n = self.task.n_waypoints
-        put("progress", min(self.index, n) / n)
-        previous = None
-        for h in range(self.lookahead + 1):
-            i = self.index + h
-            if i >= n:
-                break
-            valid = self.valid[i]
-            candidates = np.where(valid[:, None], self.candidates[i], self._centre)
-            put(f"slot{h}/present", 1.0)
-            put(f"slot{h}/candidates", self._normalise(candidates))
-            put(f"slot{h}/valid", valid)
-            put(f"slot{h}/endpoint_collision", self.endpoint_collision[i])
-            if h == 0:
-                travel = np.ones(k)
-                path = np.zeros(k)
-                if i == 0 and self.task.free_start:
-                    travel[valid] = 0.0
-                    path[valid] = self.endpoint_collision[0, valid]
-                else:
-                    travel[valid] = self.cost.travel(self.q, self.candidates[i, valid])
-                    travel[valid] /= self._travel_scale
-                    path[valid] = self._paths_collide(self.q, self.candidates[i, valid])
-                put("slot0/travel", travel)
-                put("slot0/path_collision", path)
-            else:
-                both = previous[:, None] & valid[None, :]
-                matrix = np.ones((k, k))
-                matrix[both] = self.cost.travel(
-                    self.candidates[i - 1][:, None, :], self.candidates[i][None, :, :]
-                )[both] / self._travel_scale
-                put(f"slot{h}/travel", matrix)
-            previous = valid
+        ``self._templates[i]`` is the observation at ``index == i`` (i = 0 … N) but for
+        the parts that depend on where the arm stands: ``q`` and slot 0's ``travel`` and
+        ``path_collision``, which ``_observation`` fills in.
+        """
+        n, k, dof = self.task.n_waypoints, self.arm.n_branches, self.arm.dof
+        valid = self.valid
+        self._moves_key = None  # a new task: the cached moves belong to the old one
+        # Per waypoint: present, candidates (invalid ones at the centre: 0), valid, endpoint.
+        candidates = np.where(valid[..., None], self.candidates, self._centre)
+        common = np.concatenate(
+            [np.ones((n, 1)), self._normalise(candidates).reshape(n, k * dof), valid,
+             self.endpoint_collision], axis=1,
+        )
+        width = common.shape[1]
+        templates = np.zeros((n + 1, self.observation_space.shape[0]))
+        templates[:, slice(*self.observation_layout["progress"])] = (
+            np.arange(n + 1)[:, None] / n
+        )
+        if self.lookahead and n > 1:
+            # travel[i - 1]: (K, K) from every candidate of waypoint i − 1 to every one of i.
+            both = valid[:-1, :, None] & valid[1:, None, :]
+            travel = np.ones((n - 1, k, k))
+            travel[both] = self.cost.travel(
+                self.candidates[:-1, :, None, :], self.candidates[1:, None, :, :]
+            )[both] / self._travel_scale
+            travel = travel.reshape(n - 1, k * k)
+        for h in range(min(self.lookahead, n - 1) + 1):
+            start = self.observation_layout[f"slot{h}/present"][0]
+            rows = n - h  # indices 0 … n − h − 1 see waypoint index + h inside the task
+            templates[:rows, start : start + width] = common[h:]
+            if h:
+                templates[:rows, start + width : start + width + k * k] = travel[h - 1 :]
         # Values sit inside [−1, 1] by construction; the clip only absorbs the 1e-9 slack
         # with which a branch may lie on a joint limit.
-        return np.clip(obs, -1.0, 1.0).astype(np.float32)
+        self._templates = np.clip(templates, -1.0, 1.0).astype(np.float32)
+
+    def _observation(self) -> np.ndarray:
+        obs = self._templates[self.index].copy()
+        obs[self._q_slice] = np.clip((self.q - self._centre) / self._half_range, -1.0, 1.0)
+        i = self.index
+        if i >= self.task.n_waypoints:
+            return obs
+        moves = self._moves()  # invalid branches: travel 0, collision False
+        travel = moves["travel"] / self._travel_scale
+        obs[self._travel0] = np.where(self.valid[i], np.minimum(travel, 1.0), 1.0)
+        obs[self._path0] = moves["collision"]
+        return obs
 
     # ---------------------------------------------------------------------- pickling
     def __getstate__(self) -> dict:
+        # The task's IK solutions travel with it: the copy continues bit for bit, and
+        # does not redo the IK and endpoint checks.
         return {
             "kwargs": self._kwargs,
             "rng": None if self._np_random is None else self._np_random.bit_generator.state,
             "task": self.task,
+            "solutions": (self.candidates, self.valid, self.endpoint_collision),
             "q": self.q,
             "index": self.index,
             "flags": (getattr(self, "collided", False), getattr(self, "invalid", False)),
@@ -447,10 +527,7 @@ class IKBranchEnv(gym.Env):
             self._np_random.bit_generator.state = state["rng"]
         if state["task"] is not None:
             self.task = state["task"]
-            self.candidates, self.valid = self.arm.ik(self.task.poses)
-            self.endpoint_collision = np.zeros_like(self.valid)
-            self.endpoint_collision[self.valid] = self._endpoints_collide(
-                self.candidates[self.valid]
-            )
-        self.q, self.index = state["q"], state["index"]
+            self.candidates, self.valid, self.endpoint_collision = state["solutions"]
+            self._prepare_observations()
+        self.q, self.index = np.array(state["q"], dtype=np.float64), state["index"]
         self.collided, self.invalid = state["flags"]

@@ -36,6 +36,8 @@ class Task:
 class TaskGenerator(Protocol):
     #: Waypoints when the env's ``n_waypoints`` is None.
     default_waypoints: int
+    #: The task has exactly ``default_waypoints`` waypoints (the env rejects another count).
+    fixed_waypoints: bool
 
     def __call__(
         self, arm: Arm, rng: np.random.Generator, n_waypoints: int, is_free: FreePredicate
@@ -45,11 +47,16 @@ class TaskGenerator(Protocol):
         """``ValueError`` if the generator cannot serve this arm in this scene."""
 
 
-def task_generator(default_waypoints: int, check_arm: Callable[[Arm, str], None] | None = None):
+def task_generator(
+    default_waypoints: int,
+    check_arm: Callable[[Arm, str], None] | None = None,
+    fixed_waypoints: bool = False,
+):
     """Decorate a generator function with its default length and applicability check."""
 
     def decorate(function):
         function.default_waypoints = default_waypoints
+        function.fixed_waypoints = fixed_waypoints
         function.check_arm = check_arm or (lambda arm, scene: None)
         return function
 

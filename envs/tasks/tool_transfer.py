@@ -2,12 +2,54 @@
 
 from __future__ import annotations
 
+from functools import cache
+
 import numpy as np
 
 from envs.kinematics import Arm
 from envs.kinematics.paper_example import example_poses, rack_slot_poses
 
 from .base import FreePredicate, Task, task_generator
+
+#: A tool is symmetric about its axis y3, so the gripper may hold it either way round:
+#: the second grip is the first turned half a turn about y3.
+GRIPS = (np.eye(3), np.diag([-1.0, 1.0, -1.0]))
+#: Approach and retreat (m, along +Z0): a tool leaves its cradle upwards, so every pick is
+#: entered and left through the pose this far above the slot. (The spindle is reached
+#: straight from there, as in the paper's transfer.)
+RACK_CLEARANCE = 0.15
+
+
+@cache
+def _cell_poses() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Slots and the poses above them (grips, S, 4, 4), the spindle (grips, 4, 4); computed
+    once, read-only."""
+    slots, spindle = rack_slot_poses(), example_poses()[1]
+    slot_grips = np.repeat(slots[None], len(GRIPS), axis=0)
+    spindle_grips = np.repeat(spindle[None], len(GRIPS), axis=0)
+    for grip, turn in enumerate(GRIPS):
+        slot_grips[grip, :, :3, :3] = slots[:, :3, :3] @ turn
+        spindle_grips[grip, :3, :3] = spindle[:3, :3] @ turn
+    above = slot_grips.copy()
+    above[..., 2, 3] += RACK_CLEARANCE
+    poses = (slot_grips, above, spindle_grips)
+    for pose in poses:
+        pose.flags.writeable = False
+    return poses
+
+
+@cache
+def _parked_configurations(arm: Arm) -> np.ndarray:
+    """Home and every valid front-shoulder branch above a slot or in the spindle, either
+    grip: where earlier jobs leave the arm."""
+    _, above, spindle = _cell_poses()
+    solutions, valid = arm.ik(np.concatenate([above.reshape(-1, 4, 4), spindle]))
+    # Reaching over the base (the back-shoulder branches) parks the arm where no
+    # collision-free way leads back to the front: a task from there could not be done.
+    valid &= np.array([label.startswith("front") for label in arm.branch_labels])
+    parked = np.concatenate([arm.home[None], solutions[valid]])
+    parked.flags.writeable = False
+    return parked
 
 
 def _require_anthropomorphic(arm: Arm, scene: str) -> None:
@@ -21,7 +63,7 @@ def _require_cell(arm: Arm, scene: str) -> None:
         raise ValueError("tool_changes needs scene='milling_cell' (its rack and spindle)")
 
 
-@task_generator(default_waypoints=2, check_arm=_require_anthropomorphic)
+@task_generator(default_waypoints=2, check_arm=_require_anthropomorphic, fixed_waypoints=True)
 def paper_transfer(
     arm: Arm, rng: np.random.Generator, n_waypoints: int, is_free: FreePredicate
 ) -> Task:
@@ -33,15 +75,31 @@ def paper_transfer(
     return Task(start=arm.home, poses=example_poses(), free_start=True)
 
 
-@task_generator(default_waypoints=6, check_arm=_require_cell)
+@task_generator(default_waypoints=8, check_arm=_require_cell)
 def tool_changes(
     arm: Arm, rng: np.random.Generator, n_waypoints: int, is_free: FreePredicate
 ) -> Task:
-    """From home, alternate between a random rack slot and the spindle: fetch a tool from
-    a slot, put it in the spindle, take it back to a (random) slot, … The spindle pose is
-    the paper's position 2; slot 0 is its position 1."""
-    slots, spindle = rack_slot_poses(), example_poses()[1]
-    poses = np.empty((n_waypoints, 4, 4))
-    poses[1::2] = spindle
-    poses[0::2] = slots[rng.integers(len(slots), size=len(poses[0::2]))]
-    return Task(start=arm.home, poses=poses)
+    """Tool changes in the milling cell, four waypoints a tool: above a rack slot, in the
+    slot (pick), above it again, in the spindle (insert); then the next tool
+    (``n_waypoints`` may cut the cycle anywhere; the default is two tools).
+
+    Randomised: the slot of each tool, its grip (either way round about its axis, kept
+    from slot to spindle) and the start, where an earlier job left the arm: home or a
+    collision-free front-shoulder branch above a slot or in the spindle. The spindle pose
+    is the paper's position 2; slot 0 is its position 1. The pose set is finite, so the
+    env's path-collision cache covers every move after warm-up.
+    """
+    slots, above, spindle = _cell_poses()
+    tools = -(-n_waypoints // 4)
+    grips = rng.integers(len(GRIPS), size=tools)
+    chosen = rng.integers(slots.shape[1], size=tools)
+    cycle = np.stack(
+        [above[grips, chosen], slots[grips, chosen], above[grips, chosen], spindle[grips]],
+        axis=1,
+    )
+    parked = _parked_configurations(arm)
+    parked = parked[is_free(parked)]
+    return Task(
+        start=parked[rng.integers(len(parked))].copy(),
+        poses=cycle.reshape(-1, 4, 4)[:n_waypoints],
+    )

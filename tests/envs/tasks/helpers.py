@@ -1,0 +1,33 @@
+"""Predicates and checks shared by the task-generator tests."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from envs.kinematics import Arm
+from envs.tasks import Task
+
+
+def half_space(arm: Arm):
+    """A deterministic, convex 'obstacle': configurations with φ1/s1 below mid-range collide
+    (so generators must ask the predicate, and straight joint-space sweeps between free
+    configurations stay free)."""
+    middle = arm.joint_limits[0].mean()
+
+    def is_free(q):
+        return np.asarray(q)[..., 0] >= middle
+
+    return is_free
+
+
+def assert_same_task(a: Task, b: Task) -> None:
+    assert np.array_equal(a.start, b.start) and np.array_equal(a.poses, b.poses)
+    assert a.free_start == b.free_start
+
+
+def assert_every_waypoint_has_a_free_branch(arm: Arm, task: Task, is_free) -> None:
+    candidates, valid = arm.ik(task.poses)
+    free = np.zeros_like(valid)
+    free[valid] = is_free(candidates[valid])
+    assert free.any(axis=-1).all()
+    assert task.start.shape == (arm.dof,) and np.all(is_free(task.start[None]))

@@ -1,0 +1,126 @@
+"""The class docstring is the user documentation: Gymnasium's sections, and an Arguments
+table that matches the constructor. Bad arguments fail at ``gym.make`` with a ValueError."""
+
+from __future__ import annotations
+
+import ast
+import inspect
+import re
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import envs
+from envs.ik_branch_env import IKBranchEnv
+
+SECTIONS = ("Description", "Action space", "Observation space", "Rewards", "Starting state",
+            "Episode end", "Arguments", "Version history")
+
+
+def _doc() -> str:
+    return inspect.getdoc(IKBranchEnv)
+
+
+def test_docstring_has_gymnasiums_sections_in_order():
+    headings = re.findall(r"^## (.+)$", _doc(), flags=re.MULTILINE)
+    assert tuple(headings) == SECTIONS
+
+
+def _arguments_table() -> dict[str, str]:
+    """name -> default as written, from the reST simple table under ``## Arguments``."""
+    section = _doc().split("## Arguments", 1)[1].split("\n## ", 1)[0]
+    lines = section.splitlines()
+    borders = [i for i, line in enumerate(lines) if re.fullmatch(r"=+( +=+)+", line.strip())]
+    assert len(borders) == 3, "a simple table: border, header, border, rows, border"
+    rows = {}
+    for line in lines[borders[1] + 1 : borders[2]]:
+        name, default, *_ = line.split(maxsplit=2)
+        assert name not in rows, f"{name} documented twice"
+        rows[name] = default
+    return rows
+
+
+def test_arguments_table_matches_the_signature():
+    table = _arguments_table()
+    parameters = {
+        name: p for name, p in inspect.signature(IKBranchEnv.__init__).parameters.items()
+        if name != "self"
+    }
+    assert list(table) == list(parameters)  # every parameter, no extra, in signature order
+    for name, written in table.items():
+        assert ast.literal_eval(written) == parameters[name].default, name
+
+
+def test_registered_ids_are_documented_constructor_arguments():
+    parameters = inspect.signature(IKBranchEnv.__init__).parameters
+    for env_id, kwargs in envs.ENV_SPECS.items():
+        assert env_id in gym.registry and set(kwargs) <= set(parameters)
+    assert envs.ENV_IDS == tuple(envs.ENV_SPECS)
+
+
+BAD_KWARGS = [
+    ({"scene": "moon"}, "unknown scene"),
+    ({"arm": "scara"}, "unknown arm"),
+    ({"task": "dance"}, "unknown task"),
+    ({"travel_weight": -1.0}, "travel_weight"),
+    ({"time_weight": -0.1}, "time_weight"),
+    ({"time_weight": float("nan")}, "time_weight"),
+    ({"collision_penalty": -1.0}, "collision_penalty"),
+    ({"invalid_penalty": -1.0}, "invalid_penalty"),
+    ({"invalid_penalty": float("inf")}, "invalid_penalty"),
+    ({"prismatic_scale": -1.0}, "prismatic_scale"),
+    ({"joint_weights": [1, 1, 1, 1, 1, -1]}, "joint_weights"),
+    ({"joint_weights": [1, 1]}, "joint_weights"),
+    ({"joint_speeds": [1.0, 2.0]}, "joint_speeds"),
+    ({"joint_speeds": [1, 1, 1, 1, 1, 1, 1]}, "joint_speeds"),
+    ({"joint_speeds": [1, 1, 1, 1, 1, 0]}, "joint_speeds"),
+    ({"lookahead": -1}, "lookahead"),
+    ({"lookahead": 1.5}, "lookahead"),
+    ({"n_waypoints": 0}, "n_waypoints"),
+    ({"n_waypoints": -3}, "n_waypoints"),
+    ({"n_waypoints": 2.5}, "n_waypoints"),
+    ({"n_waypoints": 3.0}, "n_waypoints"),
+    ({"n_waypoints": "3"}, "n_waypoints"),
+    ({"n_waypoints": True}, "n_waypoints"),
+    ({"collision_resolution": 0.0}, "collision_resolution"),
+    ({"scene_seed": -1}, "scene_seed"),
+    ({"width": 0}, "width"),
+    ({"render_mode": "depth"}, "render_mode"),
+    ({"arm_params": {"bogus": 1.0}}, "bogus"),
+    ({"task": "relative_motion"}, "two-arm"),
+    ({"task": "tool_changes"}, "milling_cell"),
+]
+
+
+@pytest.mark.filterwarnings("ignore:.*not in the possible render_modes:UserWarning")
+@pytest.mark.parametrize(("kwargs", "message"), BAD_KWARGS, ids=lambda v: str(v)[:40])
+def test_bad_arguments_fail_at_make_with_a_clear_value_error(kwargs, message):
+    with pytest.raises(ValueError, match=re.escape(message)):
+        gym.make("IKBranch/Anthropomorphic-v0", **kwargs)
+
+
+@pytest.mark.parametrize(
+    ("env_id", "kwargs", "message"),
+    [
+        ("IKBranch/Cartesian-v0", {"task": "tool_changes"}, "anthropomorphic"),
+        ("IKBranch/Cartesian-v0", {"scene": "milling_cell"}, "milling cell"),
+        ("IKBranch/ToolTransfer-v0", {"arm": "spherical"}, "anthropomorphic"),
+        ("IKBranch/ToolTransfer-v0", {"task": "paper_transfer", "n_waypoints": 3}, "exactly 2"),
+        ("IKBranch/RodMechanism-v0", {"task": "relative_motion"}, "two-arm"),
+        ("IKBranch/RodMechanism-v0", {"task": "helix"}, "six-DOF single arm"),
+        ("IKBranch/Cylindrical4-v0", {"task": "circle"}, "six-DOF single arm"),
+        ("IKBranch/DualRRPRPP-v0", {"task": "line"}, "six-DOF single arm"),
+        ("IKBranch/DualRRPRPP-v0", {"joint_speeds": [1.0] * 5}, "joint_speeds"),
+        ("IKBranch/RodMechanism-v0", {"joint_weights": [1.0] * 6}, "joint_weights"),
+    ],
+)
+def test_a_task_that_does_not_fit_the_arm_fails_at_make(env_id, kwargs, message):
+    with pytest.raises(ValueError, match=re.escape(message)):
+        gym.make(env_id, **kwargs)
+
+
+def test_numpy_integers_are_accepted_as_counts():
+    env = gym.make("IKBranch/ToolTransfer-v0", n_waypoints=np.int64(4), lookahead=np.int64(1))
+    obs, _ = env.reset(seed=0)
+    assert env.unwrapped.task.n_waypoints == 4 and env.observation_space.contains(obs)
