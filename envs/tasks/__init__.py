@@ -9,12 +9,17 @@ name               arms                         waypoints
 ================== ============================ ==========================================
 ``random``         every arm                    FK of random collision-free configurations
 ``helix``          six-DOF pose arms            a helix, gripper on its Frenet frame (eq. 7)
-``circle``         six-DOF pose arms            a horizontal circle, Frenet frame
+``circle``         six-DOF pose arms            a horizontal circle, Frenet frame (†)
 ``line``           six-DOF pose arms            a straight line, constant orientation
 ``relative_motion`` two-arm systems             a relative-motion profile M34(t)
-``tool_changes``   anthropomorphic, milling cell rack slot ↔ spindle, random slots
+``tool_changes``   anthropomorphic, milling cell above slot, slot, above slot, spindle …
 ``paper_transfer`` anthropomorphic              the paper's positions 1 → 2
 ================== ============================ ==========================================
+
+(†) A full Frenet circle turns the gripper once about the vertical: the anthropomorphic
+arm follows it; the cartesian, cylindrical and spherical arms' wrist bend range (±135°)
+cannot at the default 8 waypoints, and ``reset`` then fails with a ``RuntimeError`` after
+200 placements (3 waypoints work).
 """
 
 from __future__ import annotations

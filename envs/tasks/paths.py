@@ -46,7 +46,14 @@ def _place(arm, rng, n_waypoints, is_free, make_poses) -> Task:
     raise RuntimeError(f"{arm.name}: no reachable path found in {MAX_ATTEMPTS} attempts")
 
 
-def _curve_poses(points, velocity, acceleration) -> np.ndarray:
+def _helical_poses(anchor: np.ndarray, radius, pitch, phase, t: np.ndarray) -> np.ndarray:
+    """Frenet poses along the helix through the anchor's wrist centre at angle ``phase``
+    (a circle when ``pitch`` is 0), at the angles ``t``."""
+    centre = anchor[:3, 3] - radius * np.array([np.cos(phase), np.sin(phase), 0.0])
+    rise = np.full_like(t, pitch)
+    points = centre + np.stack([radius * np.cos(t), radius * np.sin(t), pitch * (t - phase)], -1)
+    velocity = np.stack([-radius * np.sin(t), radius * np.cos(t), rise], -1)
+    acceleration = np.stack([-radius * np.cos(t), -radius * np.sin(t), np.zeros_like(t)], -1)
     return frenet_pose(points, velocity, acceleration, TOOL_OFFSET)
 
 
@@ -54,11 +61,7 @@ def _helix_poses(anchor: np.ndarray, n: int, rng: np.random.Generator) -> np.nda
     radius, pitch = rng.uniform(0.08, 0.25), rng.uniform(-0.15, 0.15)
     phase, turns = rng.uniform(0, 2 * np.pi), rng.uniform(0.5, 1.0)
     t = phase + np.linspace(0.0, 2 * np.pi * turns, n)
-    centre = anchor[:3, 3] - radius * np.array([np.cos(phase), np.sin(phase), 0.0])
-    points = centre + np.stack([radius * np.cos(t), radius * np.sin(t), pitch * (t - phase)], -1)
-    velocity = np.stack([-radius * np.sin(t), radius * np.cos(t), np.full_like(t, pitch)], -1)
-    acceleration = np.stack([-radius * np.cos(t), -radius * np.sin(t), np.zeros_like(t)], -1)
-    return _curve_poses(points, velocity, acceleration)
+    return _helical_poses(anchor, radius, pitch, phase, t)
 
 
 @task_generator(default_waypoints=8, check_arm=require_pose_arm)
@@ -70,11 +73,7 @@ def helix(arm: Arm, rng: np.random.Generator, n_waypoints: int, is_free: FreePre
 def _circle_poses(anchor: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
     radius, phase = rng.uniform(0.08, 0.25), rng.uniform(0, 2 * np.pi)
     t = phase + np.linspace(0.0, 2 * np.pi * (n - 1) / n, n)
-    centre = anchor[:3, 3] - radius * np.array([np.cos(phase), np.sin(phase), 0.0])
-    points = centre + np.stack([radius * np.cos(t), radius * np.sin(t), np.zeros_like(t)], -1)
-    velocity = np.stack([-radius * np.sin(t), radius * np.cos(t), np.zeros_like(t)], -1)
-    acceleration = np.stack([-radius * np.cos(t), -radius * np.sin(t), np.zeros_like(t)], -1)
-    return _curve_poses(points, velocity, acceleration)
+    return _helical_poses(anchor, radius, 0.0, phase, t)
 
 
 @task_generator(default_waypoints=8, check_arm=require_pose_arm)
