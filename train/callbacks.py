@@ -10,6 +10,8 @@ from sb3_contrib.common.maskable.callbacks import MaskableEvalCallback
 from stable_baselines3.common.callbacks import BaseCallback
 
 LATEST = "latest.zip"
+#: Running reward statistics of a ``VecNormalize`` training env, kept beside checkpoints.
+REWARD_STATS = "vecnormalize.pkl"
 
 
 def atomic_save(model, path: str | Path) -> None:
@@ -41,6 +43,11 @@ class AtomicCheckpointCallback(BaseCallback):
         path = self.save_dir / f"ckpt_{self.num_timesteps}.zip"
         atomic_save(self.model, path)
         atomic_save(self.model, self.save_dir / LATEST)
+        normalizer = self.model.get_vec_normalize_env()
+        if normalizer is not None:
+            partial = self.save_dir / (REWARD_STATS + ".partial")
+            normalizer.save(partial)
+            os.replace(partial, self.save_dir / REWARD_STATS)
         return path
 
 

@@ -15,7 +15,7 @@ CONFIG_DIR = Path(__file__).resolve().parent.parent / "configs"
 ALGOS = ("ppo", "maskable_ppo")
 #: Keys of an entry that are not constructor arguments of the algorithm.
 RUN_KEYS = ("n_timesteps", "n_envs", "policy", "eval_freq", "n_eval_episodes",
-            "checkpoint_freq", "env_kwargs")
+            "checkpoint_freq", "env_kwargs", "normalize_reward")
 
 
 def config_path(algo: str) -> Path:
