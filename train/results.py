@@ -29,7 +29,7 @@ EVAL_SEED, EVAL_EPISODES = 3_000_000, 50
 METRICS = (("success", "success_rate", "{:.0%}"), ("return", "mean_return", "{:.2f}"),
            ("travel °", "mean_travel_deg", "{:.0f}"), ("time s", "mean_time", "{:.2f}"),
            ("collisions", "collision_rate", "{:.0%}"), ("invalid", "invalid_rate", "{:.0%}"),
-           ("gap", "optimality_gap", "{:.1%}"), ("ms/decision", "decision_ms", "{:.2f}"))
+           ("gap", "optimality_gap", "{:.2%}"), ("ms/decision", "decision_ms", "{:.2f}"))
 
 
 def env_name(env_id: str) -> str:
