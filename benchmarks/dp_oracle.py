@@ -16,16 +16,13 @@ paths checked in one batched call (what an env that priced a waypoint's K×K edg
 ``check_paths`` call would pay); then the episode replayed through ``step``, its return
 compared with the planned one.
 
-Recorded on the 2-core dev machine while other jobs ran (load average ~3; best–worst of
-three runs):
-
-- tool_changes, 1,000 waypoints (63,944 edges, 392 unique paths): cold plan 1.0–2.3 s, of
-  which path checks 0.7–1.5 s; warm plan 0.34–0.79 s, ~96 % of it the env's per-row
-  Python in ``edge_rewards`` (7,993 ``_transition_terms`` calls); the DP backward pass
-  10–25 ms. Replayed return = planned return exactly (difference 0.0).
-- random, 50 waypoints (2,660 unique paths): cold 30 s, all path checks (~11 ms per path,
-  ~1,500 samples each at δ = 10 mm); one batched ``check_paths`` call is no faster (the
-  loop backend on 2 cores). 1,000 such waypoints (~63,000 paths) extrapolate to ~12 min.
+Recorded on the 2-core dev machine, quiet, after the tool-change task gained approach
+poses, grips and parked starts (1,000 waypoints: 63,944 edges, 1,928 unique paths): cold
+plan 4.31 s, of which path checks 3.92 s; warm plan 0.33 s (the env's per-edge Python);
+the DP backward pass 6.5 ms; replayed return = planned return exactly. The earlier
+two-pose task (392 unique paths) planned cold in 1.0–2.3 s under load. ``--task random``
+(50 waypoints, every edge unique) took 30 s cold, all path checks (~11 ms per path):
+1,000 such waypoints would take ~12 min.
 """
 
 from __future__ import annotations
