@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shutil
 import sys
 import time
@@ -68,8 +69,6 @@ def produce(env_id: str, algos: tuple[str, ...], seed: int = 0) -> dict:
     policies = [str(model_path(env_id, algo).relative_to(ROOT)) for algo in algos]
     here = Path.cwd()
     try:
-        import os
-
         os.chdir(ROOT)  # model names in the record are repository paths
         results = evaluate(env_id, [*policies, *BASELINES], EVAL_EPISODES, EVAL_SEED)
     finally:
