@@ -24,7 +24,7 @@ import mujoco
 import numpy as np
 
 from envs.kinematics import Arm
-from envs.kinematics.paper_example import RACK_SLOT_OFFSETS_Y
+from envs.kinematics.paper_example import RACK_SLOT_OFFSETS_Y, TOOL_ABC_MM, example_poses
 
 from .builders import STEEL, ArmTree, add_part, add_static_body
 from .collision import DEFAULT_RESOLUTION, CollisionChecker
@@ -33,13 +33,6 @@ MACHINE_RGBA = (0.30, 0.55, 0.45, 1.0)
 RACK_RGBA = (0.35, 0.40, 0.55, 1.0)
 CLUTTER_RGBA = (0.55, 0.50, 0.45, 1.0)
 
-#: The worked example's gripper-frame points (mm): wrist centre O and the points
-#: (a, 0, 0), (0, b, 0), (0, 0, c) of x3 y3 z3, with a = c = 50 mm, b = 350 mm.
-PAPER_POINTS_MM = {
-    1: ((525, 1272, 800), (525, 1272, 750), (875, 1272, 800), (525, 1222, 800)),
-    2: ((-1475, 1290, 1100), (-1475, 1340, 1100), (-1475, 1290, 1450), (-1425, 1290, 1100)),
-}
-PAPER_ABC_MM = (50.0, 350.0, 50.0)
 #: Branch index (in ``arm.branch_labels`` order) of the paper's recommended solutions
 #: 1.1 and 2.1: shoulder front, elbow up, wrist + at both positions.
 RECOMMENDED_BRANCHES = (0, 0)
@@ -52,19 +45,11 @@ def default_tool(scene: str) -> bool:
     return scene == "milling_cell"
 
 
-def _pose_from_points_mm(points, abc) -> np.ndarray:
-    # The paper's eq. (3): columns of R are (P2−P1)/a, (P3−P1)/b, (P4−P1)/c.
-    p = np.asarray(points, dtype=float) / 1000.0
-    a, b, c = (v / 1000.0 for v in abc)
-    pose = np.eye(4)
-    pose[:3, 0], pose[:3, 1], pose[:3, 2] = (p[1] - p[0]) / a, (p[2] - p[0]) / b, (p[3] - p[0]) / c
-    pose[:3, 3] = p[0]
-    return pose
-
-
 def milling_cell_poses() -> tuple[np.ndarray, np.ndarray]:
-    """The gripper poses (4, 4) at position 1 (rack) and position 2 (spindle), in metres."""
-    return tuple(_pose_from_points_mm(PAPER_POINTS_MM[k], PAPER_ABC_MM) for k in (1, 2))
+    """The gripper poses (4, 4) at position 1 (rack) and position 2 (spindle), in metres:
+    the worked example's points through eq. (3) (``envs.kinematics.paper_example``)."""
+    position1, position2 = example_poses()
+    return position1, position2
 
 
 # ----------------------------------------------------------------------------- scenes
@@ -90,7 +75,7 @@ def milling_cell(spec: mujoco.MjSpec, arm: Arm, tree: ArmTree) -> mujoco.MjModel
     o2, tool_axis2 = pose2[:3, 3], pose2[:3, 1]
     if not (np.allclose(tool_axis1, (1, 0, 0)) and np.allclose(tool_axis2, (0, 0, 1))):
         raise RuntimeError("the layout below assumes the paper's tool axes (+X0, then +Z0)")
-    tool_length = PAPER_ABC_MM[1] / 1000.0
+    tool_length = TOOL_ABC_MM[1] / 1000.0
     x1, y1, z1 = o1
 
     # Position 1: a cabinet whose top is 0.2 m below the tool and V-block cradles under
