@@ -14,13 +14,13 @@ import gymnasium as gym
 
 #: id -> the constructor arguments that make it (see ``envs.ik_branch_env.IKBranchEnv``).
 ENV_SPECS: dict[str, dict] = {
-    "IKBranch/Cartesian-v0": {"arm": "cartesian", "scene": "random_clutter", "task": "random"},
-    "IKBranch/Cylindrical-v0": {"arm": "cylindrical", "scene": "random_clutter", "task": "random"},
-    "IKBranch/Spherical-v0": {"arm": "spherical", "scene": "random_clutter", "task": "random"},
-    "IKBranch/Anthropomorphic-v0": {
+    "IKBranch/Cartesian-v1": {"arm": "cartesian", "scene": "random_clutter", "task": "random"},
+    "IKBranch/Cylindrical-v1": {"arm": "cylindrical", "scene": "random_clutter", "task": "random"},
+    "IKBranch/Spherical-v1": {"arm": "spherical", "scene": "random_clutter", "task": "random"},
+    "IKBranch/Anthropomorphic-v1": {
         "arm": "anthropomorphic", "scene": "random_clutter", "task": "random",
     },
-    "IKBranch/Cylindrical4-v0": {
+    "IKBranch/Cylindrical4-v1": {
         "arm": "cylindrical4", "scene": "random_clutter", "task": "random",
     },
     "IKBranch/ToolTransfer-v0": {
@@ -29,7 +29,7 @@ ENV_SPECS: dict[str, dict] = {
     "IKBranch/DualRRPRPP-v0": {"arm": "dual_rrp_rpp", "scene": "empty", "task": "relative_motion"},
     "IKBranch/DualRRRPPP-v0": {"arm": "dual_rrr_ppp", "scene": "empty", "task": "relative_motion"},
     "IKBranch/DualPPRPRR-v0": {"arm": "dual_ppr_prr", "scene": "empty", "task": "relative_motion"},
-    "IKBranch/RodMechanism-v0": {"arm": "rod_mechanism", "scene": "empty", "task": "random"},
+    "IKBranch/RodMechanism-v1": {"arm": "rod_mechanism", "scene": "empty", "task": "random"},
 }
 ENV_IDS: tuple[str, ...] = tuple(ENV_SPECS)
 

@@ -89,7 +89,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         prog="python -m train.evaluate", description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("--env", required=True, help="env id, e.g. IKBranch/Anthropomorphic-v0")
+    parser.add_argument("--env", required=True, help="env id, e.g. IKBranch/Anthropomorphic-v1")
     parser.add_argument("--env-kwargs", type=json.loads, default={},
                         help='JSON dict of env arguments, e.g. \'{"n_waypoints": 12}\'')
     parser.add_argument("--policy", action="append", required=True, dest="policies",

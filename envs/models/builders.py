@@ -147,6 +147,39 @@ def _cylinder_to_primitive(geom: mujoco.MjsGeom, size: np.ndarray, fromto) -> No
         geom.size = np.array([radius, radius, half])
 
 
+def compile_spec(spec: mujoco.MjSpec) -> mujoco.MjModel:
+    """Compile ``spec`` with every collision box turned into an 8-vertex convex mesh.
+
+    MuJoCo's box–box collider misses pairs inside their contact margin in some
+    orientations (google-deepmind/mujoco#2471): in an Anthropomorphic-v0 path, the
+    gripper box came within 8.8 mm of an obstacle box (``mj_geomDistance``) while
+    ``mj_collision`` reported nothing even with a 0.2 m margin. The same boxes as meshes go
+    through the general convex solver, whose distances match ``mj_geomDistance`` (see
+    tests/envs/models/test_collision.py). Visual geoms stay boxes. A box's frame (possibly
+    set by ``fromto``) is taken from a first compile, so the mesh lands exactly on it.
+    """
+    first = spec.compile()
+    boxes = [
+        g for g in range(first.ngeom)
+        if first.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX and first.geom_contype[g]
+    ]
+    if not boxes:
+        return first
+    corners = np.array(list(itertools.product((-1.0, 1.0), repeat=3)))
+    for g in boxes:
+        name = first.geom(g).name
+        mesh = spec.add_mesh()
+        mesh.name = f"{name}_hull"
+        mesh.uservert = (corners * first.geom_size[g]).ravel()
+        geom = spec.geom(name)
+        geom.type = mujoco.mjtGeom.mjGEOM_MESH
+        geom.meshname = mesh.name
+        geom.fromto = np.full(6, np.nan)
+        geom.pos = first.geom_pos[g].copy()
+        geom.quat = first.geom_quat[g].copy()
+    return spec.compile()
+
+
 def add_static_body(spec: mujoco.MjSpec, name: str) -> mujoco.MjsBody:
     body = spec.worldbody.add_body()
     body.name = name

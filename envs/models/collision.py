@@ -31,25 +31,49 @@ For scale, the anthropomorphic arm's R (with the tool) is ~2.5 m for φ1, so one
 through a 30 mm obstacle; the Cartesian rule puts ~600 samples on the paper's 1.1 → 2.1
 transfer (δ = 10 mm), and a 20 mm rod is always caught (see the tests).
 
+Conservative advancement (the loop backend)
+-------------------------------------------
+Most samples of a path lie far from everything. The loop backend visits the same grid
+t_i = i/n but skips samples it can prove free. The distance of a geom pair changes along
+the path at most at rate L = Σ_j R_j,b·|Δq_j| over the joints that move its two bodies
+relative to each other (per-body lever arms, :func:`body_lever_arms`; joints that move
+both bodies turn them rigidly together and drop out). At a checked sample every pair that
+``mj_collision`` may test (:func:`candidate_pairs`) gets a lower bound on its distance d:
+its bounding spheres' gap (a half-space for a plane), replaced by the exact
+``mj_geomDistance`` for the pairs whose bound would limit the step. The next
+⌊min (d − δ)/L · n⌋ samples keep every pair farther than δ, so they would pass the δ check
+and are skipped; a sample with a pair closer than δ is decided by ``mj_collision`` itself.
+The outcome and the first colliding sample therefore equal the flat check's (tested on
+random scenes of every arm); only the work shrinks (``benchmarks/collision_throughput.py``).
+
+Two MuJoCo behaviours broke the δ guarantee itself and are avoided (both found by
+comparing ``mj_collision`` with ``mj_geomDistance`` along Anthropomorphic-v0 paths): the
+box–box collider misses pairs inside their margin in some orientations
+(google-deepmind/mujoco#2471; a gripper 8.8 mm from an obstacle went unreported), so
+collision boxes are built as convex meshes (``envs.models.builders.compile_spec``); and
+the body-level midphase dropped a gripper–floor pair 6 mm apart when the margins are set
+on the compiled model, so the checker disables the midphase (our bodies carry few geoms).
+
 Backends (identical results, see ``benchmarks/collision_throughput.py``):
 
-``"batch"``  ``mujoco.batch.Batch``: C thread pool, GIL released. Its finest stage,
-             ``mjSTAGE_POS``, also computes inertia, its factorisation and the contact
-             constraints, ~1.3× the work of kinematics + collision per configuration, so it
-             only pays off with several free cores.
-``"loop"``   ``mj_kinematics`` + ``mj_collision`` on one reused ``MjData``; path checks stop
-             at each path's first contact.
+``"batch"``  ``mujoco.batch.Batch``: C thread pool, GIL released, every grid sample. Its
+             finest stage, ``mjSTAGE_POS``, also computes inertia, its factorisation and
+             the contact constraints, ~1.3× the work of kinematics + collision per
+             configuration, so it only pays off with several free cores.
+``"loop"``   ``mj_kinematics`` + ``mj_collision`` on one reused ``MjData``; path checks
+             advance conservatively (above) and stop at each path's first contact.
 ``"auto"``   (default) ``"batch"`` when at least 4 threads are available, else ``"loop"``:
              on the 2-CPU development machine the loop was faster (docs/models.md).
 
 Contacts of a colliding sample are read back with the loop's ``MjData``. The checker holds
-a private copy of the model (with the margins), that ``MjData`` and the lazily built
+private copies of the model (with the margins), their ``MjData`` and the lazily built
 batch; results depend only on the inputs.
 """
 
 from __future__ import annotations
 
 import copy
+import itertools
 import os
 from dataclasses import dataclass
 
@@ -60,6 +84,8 @@ import numpy as np
 #: Default Cartesian resolution δ (m): largest displacement of any geom point between
 #: samples, and the clearance below which two geoms count as colliding.
 DEFAULT_RESOLUTION = 0.01
+#: Reported distances are trusted only up to this (m) when skipping samples.
+DISTANCE_TOLERANCE = 1e-6
 
 
 @dataclass(frozen=True)
@@ -120,6 +146,62 @@ def lever_arms(model: mujoco.MjModel) -> np.ndarray:
     return arms
 
 
+def body_lever_arms(model: mujoco.MjModel, dof: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per-body lever arms of the first ``dof`` joints: ``levers`` (nbody, dof) bounds how
+    fast any collision-geom point of body b moves per unit speed of joint j (m/rad for a
+    hinge, over all configurations; 1 for a slide; 0 unless j moves b), and ``moves``
+    (nbody, dof) is 1 where joint j moves body b."""
+    collide = (model.geom_contype | model.geom_conaffinity) != 0
+    own = np.zeros(model.nbody)  # body origin to its farthest collision-geom point
+    for g in np.flatnonzero(collide):
+        b = model.geom_bodyid[g]
+        own[b] = max(own[b], np.linalg.norm(model.geom_pos[g]) + model.geom_rbound[g])
+    levers, moves = np.zeros((model.nbody, dof)), np.zeros((model.nbody, dof))
+    for b in range(1, model.nbody):
+        reach, body = own[b], b  # reach: bound on |point − origin of ``body``|
+        while body != 0:
+            first = model.body_jntadr[body]
+            joints = range(first, first + model.body_jntnum[body])
+            stroke = 0.0
+            for j in joints:
+                slide = model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE
+                if j < dof:
+                    moves[b, j] = 1.0
+                    levers[b, j] = 1.0 if slide else np.linalg.norm(model.jnt_pos[j]) + reach
+                if slide:
+                    stroke += np.max(np.abs(model.jnt_range[j])) if model.jnt_limited[j] else np.inf
+            reach += np.linalg.norm(model.body_pos[body]) + stroke
+            body = model.body_parentid[body]
+    return levers, moves
+
+
+def candidate_pairs(model: mujoco.MjModel) -> np.ndarray:
+    """(P, 2) geom pairs ``mj_collision`` may test, a plane always first: collision geoms
+    with compatible contype/conaffinity on different, non-welded bodies, minus explicit
+    excludes and (unless disabled) parent–child pairs, the filters MuJoCo applies."""
+    weld = model.body_weldid
+    weld_parent = weld[model.body_parentid[weld]]
+    filter_parent = not model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_FILTERPARENT
+    excluded = set(model.exclude_signature.tolist())
+    geoms = np.flatnonzero((model.geom_contype | model.geom_conaffinity) != 0)
+    pairs = []
+    for g1, g2 in itertools.combinations(geoms, 2):
+        b1, b2 = model.geom_bodyid[g1], model.geom_bodyid[g2]
+        w1, w2 = weld[b1], weld[b2]
+        if w1 == w2:
+            continue
+        if filter_parent and w1 and w2 and (w1 == weld_parent[b2] or w2 == weld_parent[b1]):
+            continue
+        if ((min(b1, b2) << 16) + max(b1, b2)) in excluded:
+            continue
+        if not (model.geom_contype[g1] & model.geom_conaffinity[g2]
+                or model.geom_contype[g2] & model.geom_conaffinity[g1]):
+            continue
+        plane2 = model.geom_type[g2] == mujoco.mjtGeom.mjGEOM_PLANE
+        pairs.append((g2, g1) if plane2 else (g1, g2))
+    return np.array(pairs, dtype=np.int64).reshape(-1, 2)
+
+
 class CollisionChecker:
     """Collision checks on one compiled model.
 
@@ -152,6 +234,7 @@ class CollisionChecker:
         collide = (self.model.geom_contype | self.model.geom_conaffinity) != 0
         self.model.geom_margin[collide] = 0.5 * resolution if pad else 0.0
         self.model.geom_gap[collide] = 0.0
+        self.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_MIDPHASE
         self._data = mujoco.MjData(self.model)
         if backend not in ("auto", "batch", "loop"):
             raise ValueError("backend must be 'auto', 'batch' or 'loop'")
@@ -166,6 +249,14 @@ class CollisionChecker:
         qpos_arm = np.zeros(self.model.nq)
         qpos_arm[self.model.jnt_qposadr] = arms
         self.lever = qpos_arm[: self.dof]
+        self._body_levers, self._body_moves = body_lever_arms(self.model, self.dof)
+        self._pairs = candidate_pairs(self.model)
+        self._pair_bodies = self.model.geom_bodyid[self._pairs]
+        plane = self.model.geom_type[self._pairs] == mujoco.mjtGeom.mjGEOM_PLANE
+        self._plane_pairs = plane[:, 0]
+        self._sphere_pairs = ~plane[:, 0]
+        rbound = np.where(plane, 0.0, self.model.geom_rbound[self._pairs])
+        self._radius_sum = rbound.sum(axis=1)
 
     # ------------------------------------------------------------------ configurations
     def _full_qpos(self, q: np.ndarray) -> np.ndarray:
@@ -287,21 +378,24 @@ class CollisionChecker:
     def _check_paths_flat(self, q0: np.ndarray, q1: np.ndarray, want_contacts: bool):
         steps = self.n_steps(q0, q1)
         counts = steps + 1
+        collides = np.zeros(len(q0), dtype=bool)
+        first = np.full(len(q0), np.nan)
+        contacts: list[tuple[Contact, ...]] = [() for _ in range(len(q0))]
+        if self.backend == "loop":
+            for path, n in enumerate(steps.tolist()):
+                index = self._first_hit_advancing(q0[path], q1[path], n)
+                if index >= 0:
+                    collides[path] = True
+                    first[path] = index / n
+                    if want_contacts:
+                        sample = q0[path] + first[path] * (q1[path] - q0[path])
+                        contacts[path] = self.contacts(sample)
+            return collides, first, contacts, counts
         owner = np.repeat(np.arange(len(q0)), counts)
         starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
         t = (np.arange(counts.sum()) - starts[owner]) / steps[owner]
         samples = q0[owner] + t[:, None] * (q1[owner] - q0[owner])
-        if self.backend == "loop":
-            # Only the first contact of a path matters: stop each path there.
-            hit = np.zeros(len(samples), dtype=bool)
-            for start, count in zip(starts, counts, strict=True):
-                rows = slice(start, start + count)
-                hit[rows] = self._n_contacts_loop(samples[rows], stop_at_first=True) > 0
-        else:
-            hit = self.collides(samples) if len(samples) else np.zeros(0, dtype=bool)
-        collides = np.zeros(len(q0), dtype=bool)
-        first = np.full(len(q0), np.nan)
-        contacts: list[tuple[Contact, ...]] = [() for _ in range(len(q0))]
+        hit = self.collides(samples) if len(samples) else np.zeros(0, dtype=bool)
         hit_rows = np.flatnonzero(hit)
         if len(hit_rows):
             # The first hit of each path: hits are sorted, so np.unique's first index works.
@@ -313,3 +407,67 @@ class CollisionChecker:
                 for path, row in zip(paths, rows, strict=True):
                     contacts[path] = self.contacts(samples[row])
         return collides, first, contacts, counts
+
+    def _first_hit_advancing(self, q0: np.ndarray, q1: np.ndarray, n: int) -> int:
+        """Grid index i of the first sample q0 + (i/n)(q1 − q0) closer than δ to a contact,
+        −1 if none; skips samples the distances prove free (module docstring)."""
+        delta = q1 - q0
+        weighted = self._body_levers * np.abs(delta)  # (nbody, dof)
+        reach = weighted.sum(axis=1)
+        shared = weighted @ self._body_moves.T  # motion of b1's points by b2's joints
+        # Rate (per unit t) at which the distance of bodies b1, b2 can change: joints that
+        # move both turn them rigidly together and drop out.
+        rate = reach[:, None] + reach[None, :] - shared - shared.T
+        pair_rate = rate[self._pair_bodies[:, 0], self._pair_bodies[:, 1]]
+        moving = pair_rate > 1e-12
+        if not moving.any():  # nothing moves relative to anything: one sample decides
+            return -1 if self._n_contacts_loop(q0[None]).item() == 0 else 0
+        pair_rate = pair_rate[moving]
+        first, second = self._pairs[moving, 0], self._pairs[moving, 1]
+        planes = self._plane_pairs[moving]
+        spheres = ~planes
+        sphere_first, sphere_second = first[spheres], second[spheres]
+        plane_first, plane_second = first[planes], second[planes]
+        radius = self._radius_sum[moving]
+        radius = np.concatenate([radius[spheres], radius[planes]])
+        order_rate = np.concatenate([pair_rate[spheres], pair_rate[planes]])
+        first_ids = np.concatenate([sphere_first, plane_first]).tolist()
+        second_ids = np.concatenate([sphere_second, plane_second]).tolist()
+        rates = order_rate.tolist()
+        margin = self.resolution + DISTANCE_TOLERANCE
+        model, data = self.model, self._data
+        geom_distance = mujoco.mj_geomDistance
+        qpos = self.model.qpos0.copy()
+        centre, frame = data.geom_xpos, data.geom_xmat
+        i = 0
+        while i <= n:
+            qpos[: self.dof] = q0 + (i / n) * delta
+            data.qpos[:] = qpos
+            mujoco.mj_kinematics(model, data)
+            # Lower bounds from bounding spheres (half-spaces for planes) ...
+            gap = centre[sphere_first] - centre[sphere_second]
+            above = np.einsum(
+                "ij,ij->i", frame[plane_first, 6:9], centre[plane_second] - centre[plane_first]
+            )
+            bound = np.concatenate([np.sqrt(np.einsum("ij,ij->i", gap, gap)), above]) - radius
+            steps = ((bound - margin) / order_rate).tolist()
+            # ... then exact distances, nearest-in-time first, only while a pair's bound
+            # could still be the one that limits the step.
+            best, hit = np.inf, False
+            for k in sorted(range(len(steps)), key=steps.__getitem__):
+                if steps[k] >= best:
+                    break
+                cutoff = margin + best * rates[k] if best < np.inf else 1e3
+                distance = geom_distance(model, data, first_ids[k], second_ids[k], cutoff, None)
+                if distance < margin:
+                    hit = True
+                    break
+                best = min(best, (distance - margin) / rates[k])
+            if hit:
+                mujoco.mj_collision(model, data)
+                if data.ncon:
+                    return i
+                i += 1
+            else:
+                i += 1 + int(best * n)
+        return -1

@@ -26,7 +26,7 @@ import numpy as np
 from envs.kinematics import Arm
 from envs.kinematics.paper_example import RACK_SLOT_OFFSETS_Y, TOOL_ABC_MM, example_poses
 
-from .builders import STEEL, ArmTree, add_part, add_static_body
+from .builders import STEEL, ArmTree, add_part, add_static_body, compile_spec
 from .collision import DEFAULT_RESOLUTION, CollisionChecker
 
 MACHINE_RGBA = (0.30, 0.55, 0.45, 1.0)
@@ -54,7 +54,7 @@ def milling_cell_poses() -> tuple[np.ndarray, np.ndarray]:
 
 # ----------------------------------------------------------------------------- scenes
 def empty(spec: mujoco.MjSpec, arm: Arm, tree: ArmTree) -> mujoco.MjModel:
-    return spec.compile()
+    return compile_spec(spec)
 
 
 def _box(body, name, lo, hi, rgba) -> None:
@@ -112,7 +112,7 @@ def milling_cell(spec: mujoco.MjSpec, arm: Arm, tree: ArmTree) -> mujoco.MjModel
     # forearm of the elbow-up solutions; an elbow-down forearm comes in lower and hits it.
     _box(machine, "mill_chip_guard", (x2 - 0.55, y2 - 0.32, z2 - 0.25),
          (x2 + 0.50, y2 - 0.30, z2 - 0.03), STEEL)
-    return spec.compile()
+    return compile_spec(spec)
 
 
 def random_clutter(
@@ -163,13 +163,13 @@ def random_clutter(
             add_part(body, f"clutter{k}", "cylinder", [half[0], top / 2], CLUTTER_RGBA,
                      pos=[xy[0], xy[1], top / 2])
         bodies.append(body)
-    model = spec.compile()
+    model = compile_spec(spec)
     checker = CollisionChecker(model, dof=arm.dof, resolution=clearance)
     touching = {name for c in checker.contacts(arm.home) for name in (c.body1, c.body2)}
     for body in bodies:
         if body.name in touching:
             spec.delete(body)
-    return spec.compile() if touching else model
+    return compile_spec(spec) if touching else model
 
 
 SCENES = {"empty": empty, "milling_cell": milling_cell, "random_clutter": random_clutter}

@@ -12,6 +12,9 @@ from envs.kinematics import Arm
 
 #: Collision predicate the env hands to generators: (M, dof) -> (M,) bool, True = free.
 FreePredicate = Callable[[np.ndarray], np.ndarray]
+#: Path predicate: q0 (M, dof), q1 (M, dof) -> (M,) bool, True where the linear joint-space
+#: path q0 → q1 is collision-free (the env's path check, the one ``step`` charges).
+PathPredicate = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
 @dataclass(frozen=True, eq=False)
@@ -40,7 +43,12 @@ class TaskGenerator(Protocol):
     fixed_waypoints: bool
 
     def __call__(
-        self, arm: Arm, rng: np.random.Generator, n_waypoints: int, is_free: FreePredicate
+        self,
+        arm: Arm,
+        rng: np.random.Generator,
+        n_waypoints: int,
+        is_free: FreePredicate,
+        is_path_free: PathPredicate,
     ) -> Task: ...
 
     def check_arm(self, arm: Arm, scene: str) -> None:

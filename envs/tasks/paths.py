@@ -16,6 +16,7 @@ from envs.kinematics import Arm, frenet_pose
 
 from .base import (
     FreePredicate,
+    PathPredicate,
     Task,
     require_pose_arm,
     sample_free_configurations,
@@ -65,7 +66,13 @@ def _helix_poses(anchor: np.ndarray, n: int, rng: np.random.Generator) -> np.nda
 
 
 @task_generator(default_waypoints=8, check_arm=require_pose_arm)
-def helix(arm: Arm, rng: np.random.Generator, n_waypoints: int, is_free: FreePredicate) -> Task:
+def helix(
+    arm: Arm,
+    rng: np.random.Generator,
+    n_waypoints: int,
+    is_free: FreePredicate,
+    is_path_free: PathPredicate,
+) -> Task:
     """A helix of random radius (0.08–0.25 m), pitch and length (½–1 turn)."""
     return _place(arm, rng, n_waypoints, is_free, _helix_poses)
 
@@ -77,7 +84,13 @@ def _circle_poses(anchor: np.ndarray, n: int, rng: np.random.Generator) -> np.nd
 
 
 @task_generator(default_waypoints=8, check_arm=require_pose_arm)
-def circle(arm: Arm, rng: np.random.Generator, n_waypoints: int, is_free: FreePredicate) -> Task:
+def circle(
+    arm: Arm,
+    rng: np.random.Generator,
+    n_waypoints: int,
+    is_free: FreePredicate,
+    is_path_free: PathPredicate,
+) -> Task:
     """A horizontal circle of random radius (0.08–0.25 m), evenly sampled."""
     return _place(arm, rng, n_waypoints, is_free, _circle_poses)
 
@@ -92,6 +105,12 @@ def _line_poses(anchor: np.ndarray, n: int, rng: np.random.Generator) -> np.ndar
 
 
 @task_generator(default_waypoints=8, check_arm=require_pose_arm)
-def line(arm: Arm, rng: np.random.Generator, n_waypoints: int, is_free: FreePredicate) -> Task:
+def line(
+    arm: Arm,
+    rng: np.random.Generator,
+    n_waypoints: int,
+    is_free: FreePredicate,
+    is_path_free: PathPredicate,
+) -> Task:
     """A straight segment (0.2–0.6 m, random direction) at constant orientation."""
     return _place(arm, rng, n_waypoints, is_free, _line_poses)

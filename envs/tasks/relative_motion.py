@@ -6,7 +6,7 @@ import numpy as np
 
 from envs.kinematics import Arm
 
-from .base import FreePredicate, Task, sample_free_configurations, task_generator
+from .base import FreePredicate, PathPredicate, Task, sample_free_configurations, task_generator
 
 #: Attempts at a profile whose every sample is collision-free before accepting one that
 #: is not (its waypoints stay reachable; only some branches then collide).
@@ -20,7 +20,11 @@ def _require_dual(arm: Arm, scene: str) -> None:
 
 @task_generator(default_waypoints=8, check_arm=_require_dual)
 def relative_motion(
-    arm: Arm, rng: np.random.Generator, n_waypoints: int, is_free: FreePredicate
+    arm: Arm,
+    rng: np.random.Generator,
+    n_waypoints: int,
+    is_free: FreePredicate,
+    is_path_free: PathPredicate,
 ) -> Task:
     """The relative pose of link 4 in link 3 along a smooth joint-space sweep.
 

@@ -9,7 +9,7 @@ import numpy as np
 from envs.kinematics import Arm
 from envs.kinematics.paper_example import example_poses, rack_slot_poses
 
-from .base import FreePredicate, Task, task_generator
+from .base import FreePredicate, PathPredicate, Task, task_generator
 
 #: A tool is symmetric about its axis y3, so the gripper may hold it either way round:
 #: the second grip is the first turned half a turn about y3.
@@ -65,7 +65,11 @@ def _require_cell(arm: Arm, scene: str) -> None:
 
 @task_generator(default_waypoints=2, check_arm=_require_anthropomorphic, fixed_waypoints=True)
 def paper_transfer(
-    arm: Arm, rng: np.random.Generator, n_waypoints: int, is_free: FreePredicate
+    arm: Arm,
+    rng: np.random.Generator,
+    n_waypoints: int,
+    is_free: FreePredicate,
+    is_path_free: PathPredicate,
 ) -> Task:
     """Klyuiko's worked example: the arm stands at position 1 with a free choice of its
     branch (the first step costs no motion), then transfers to position 2. The least
@@ -77,7 +81,11 @@ def paper_transfer(
 
 @task_generator(default_waypoints=8, check_arm=_require_cell)
 def tool_changes(
-    arm: Arm, rng: np.random.Generator, n_waypoints: int, is_free: FreePredicate
+    arm: Arm,
+    rng: np.random.Generator,
+    n_waypoints: int,
+    is_free: FreePredicate,
+    is_path_free: PathPredicate,
 ) -> Task:
     """Tool changes in the milling cell, four waypoints a tool: above a rack slot, in the
     slot (pick), above it again, in the spindle (insert); then the next tool

@@ -15,12 +15,12 @@ from agents import DPOracle, RecedingDP, ladder_q_tables, make_baseline
 #: collisions (spherical, rod, milling cell), collisions that do not end the episode, and a
 #: time term. Dual-arm ids are absent while their models do not build.
 CASES = [
-    ("IKBranch/RodMechanism-v0", {"n_waypoints": 4}, (0, 1, 2)),
-    ("IKBranch/RodMechanism-v0", {"n_waypoints": 4, "time_weight": 0.5}, (3,)),
-    ("IKBranch/Spherical-v0", {"n_waypoints": 5}, (0, 1)),
-    ("IKBranch/Cylindrical-v0", {"n_waypoints": 5, "terminate_on_collision": False}, (0, 1)),
+    ("IKBranch/RodMechanism-v1", {"n_waypoints": 4}, (0, 1, 2)),
+    ("IKBranch/RodMechanism-v1", {"n_waypoints": 4, "time_weight": 0.5}, (3,)),
+    ("IKBranch/Spherical-v1", {"n_waypoints": 5}, (0, 1)),
+    ("IKBranch/Cylindrical-v1", {"n_waypoints": 5, "terminate_on_collision": False}, (0, 1)),
     ("IKBranch/ToolTransfer-v0", {"n_waypoints": 3}, (0, 1)),
-    ("IKBranch/Anthropomorphic-v0", {"n_waypoints": 3}, (4,)),
+    ("IKBranch/Anthropomorphic-v1", {"n_waypoints": 3}, (4,)),
 ]
 PARAMS = [
     pytest.param(env_id, kwargs, seed, id=f"{env_id.split('/')[1]}-{i}-s{seed}")
@@ -89,7 +89,7 @@ def test_receding_dp_with_the_whole_horizon_is_the_oracle(env_id, kwargs, seed):
 
 def test_oracle_brute_force_by_replaying_every_sequence_in_the_env():
     """Independent of ``edge_rewards``: all K^N sequences played through ``step``."""
-    env = gym.make("IKBranch/Spherical-v0", n_waypoints=4)
+    env = gym.make("IKBranch/Spherical-v1", n_waypoints=4)
     oracle = DPOracle(env)
     paid, _ = play(env, oracle, seed=1)
     best = -np.inf
@@ -116,7 +116,7 @@ def test_terminal_edges_end_the_plan():
 
 
 def test_oracle_replans_when_the_env_draws_a_new_task_without_episode_start():
-    env = gym.make("IKBranch/RodMechanism-v0", n_waypoints=4)
+    env = gym.make("IKBranch/RodMechanism-v1", n_waypoints=4)
     oracle = DPOracle(env)
     obs, _ = env.reset(seed=0)
     oracle.predict(obs)
@@ -128,7 +128,7 @@ def test_oracle_replans_when_the_env_draws_a_new_task_without_episode_start():
 
 
 def test_receding_horizon_defaults_to_what_the_observation_shows():
-    env = gym.make("IKBranch/RodMechanism-v0", lookahead=3)
+    env = gym.make("IKBranch/RodMechanism-v1", lookahead=3)
     assert RecedingDP(env).horizon == 4
     with pytest.raises(ValueError, match="horizon"):
         RecedingDP(env, horizon=0)

@@ -31,7 +31,7 @@ def test_paper_transfer_gives_the_papers_pair_and_travel(name):
 
 
 @pytest.mark.parametrize("name", sorted(BASELINES))
-@pytest.mark.parametrize("env_id", ["IKBranch/RodMechanism-v0", "IKBranch/Spherical-v0"])
+@pytest.mark.parametrize("env_id", ["IKBranch/RodMechanism-v1", "IKBranch/Spherical-v1"])
 def test_baselines_never_pick_a_masked_branch(name, env_id):
     env = gym.make(env_id, n_waypoints=6)
     policy = make_baseline(name, env)
@@ -46,7 +46,7 @@ def test_baselines_never_pick_a_masked_branch(name, env_id):
             assert mask[int(action)]
             obs, _, done, _, info = env.step(action)
             assert not info["invalid"]
-    if env_id == "IKBranch/RodMechanism-v0":
+    if env_id == "IKBranch/RodMechanism-v1":
         assert masked_seen > 0  # the rod's tasks do mask branches: the check has teeth
 
 
@@ -62,7 +62,7 @@ def test_a_stricter_caller_mask_is_honoured(name):
 
 
 def test_predict_follows_sb3_shapes():
-    env = gym.make("IKBranch/RodMechanism-v0", n_waypoints=3)
+    env = gym.make("IKBranch/RodMechanism-v1", n_waypoints=3)
     policy = make_baseline("paper_rule", env)
     obs, _ = env.reset(seed=0)
     action, state = policy.predict(obs, state="kept")
@@ -104,7 +104,7 @@ def test_fixed_takes_its_branch_then_the_nearest_label():
 
 
 def test_random_is_reproducible_under_its_seed():
-    env = gym.make("IKBranch/RodMechanism-v0", n_waypoints=6)
+    env = gym.make("IKBranch/RodMechanism-v1", n_waypoints=6)
 
     def actions(seed):
         policy = make_baseline("random", env, seed=seed)
@@ -120,6 +120,6 @@ def test_random_is_reproducible_under_its_seed():
 
 
 def test_unknown_baseline_is_a_value_error():
-    env = gym.make("IKBranch/RodMechanism-v0")
+    env = gym.make("IKBranch/RodMechanism-v1")
     with pytest.raises(ValueError, match="unknown baseline"):
         make_baseline("genius", env)

@@ -97,22 +97,22 @@ BAD_KWARGS = [
 @pytest.mark.parametrize(("kwargs", "message"), BAD_KWARGS, ids=lambda v: str(v)[:40])
 def test_bad_arguments_fail_at_make_with_a_clear_value_error(kwargs, message):
     with pytest.raises(ValueError, match=re.escape(message)):
-        gym.make("IKBranch/Anthropomorphic-v0", **kwargs)
+        gym.make("IKBranch/Anthropomorphic-v1", **kwargs)
 
 
 @pytest.mark.parametrize(
     ("env_id", "kwargs", "message"),
     [
-        ("IKBranch/Cartesian-v0", {"task": "tool_changes"}, "anthropomorphic"),
-        ("IKBranch/Cartesian-v0", {"scene": "milling_cell"}, "milling cell"),
+        ("IKBranch/Cartesian-v1", {"task": "tool_changes"}, "anthropomorphic"),
+        ("IKBranch/Cartesian-v1", {"scene": "milling_cell"}, "milling cell"),
         ("IKBranch/ToolTransfer-v0", {"arm": "spherical"}, "anthropomorphic"),
         ("IKBranch/ToolTransfer-v0", {"task": "paper_transfer", "n_waypoints": 3}, "exactly 2"),
-        ("IKBranch/RodMechanism-v0", {"task": "relative_motion"}, "two-arm"),
-        ("IKBranch/RodMechanism-v0", {"task": "helix"}, "six-DOF single arm"),
-        ("IKBranch/Cylindrical4-v0", {"task": "circle"}, "six-DOF single arm"),
+        ("IKBranch/RodMechanism-v1", {"task": "relative_motion"}, "two-arm"),
+        ("IKBranch/RodMechanism-v1", {"task": "helix"}, "six-DOF single arm"),
+        ("IKBranch/Cylindrical4-v1", {"task": "circle"}, "six-DOF single arm"),
         ("IKBranch/DualRRPRPP-v0", {"task": "line"}, "six-DOF single arm"),
         ("IKBranch/DualRRPRPP-v0", {"joint_speeds": [1.0] * 5}, "joint_speeds"),
-        ("IKBranch/RodMechanism-v0", {"joint_weights": [1.0] * 6}, "joint_weights"),
+        ("IKBranch/RodMechanism-v1", {"joint_weights": [1.0] * 6}, "joint_weights"),
     ],
 )
 def test_a_task_that_does_not_fit_the_arm_fails_at_make(env_id, kwargs, message):

@@ -63,8 +63,8 @@ def test_reward_is_the_sum_of_the_info_terms(env_id, terminate_on_collision):
     [
         ("IKBranch/ToolTransfer-v0", {"terminate_on_collision": False}, "collision"),
         ("IKBranch/ToolTransfer-v0", {}, "collision"),
-        ("IKBranch/RodMechanism-v0", {}, "invalid"),
-        ("IKBranch/Anthropomorphic-v0", {"terminate_on_collision": False}, "invalid"),
+        ("IKBranch/RodMechanism-v1", {}, "invalid"),
+        ("IKBranch/Anthropomorphic-v1", {"terminate_on_collision": False}, "invalid"),
     ],
 )
 def test_rollouts_do_exercise_collisions_and_invalid_branches(env_id, kwargs, term):

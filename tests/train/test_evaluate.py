@@ -12,7 +12,7 @@ import envs  # noqa: F401
 from agents.evaluation import evaluate
 from train.evaluate import main
 
-ENV = "IKBranch/RodMechanism-v0"
+ENV = "IKBranch/RodMechanism-v1"
 KWARGS = {"n_waypoints": 5}
 REQUIRED = {"success_rate", "mean_return", "mean_travel", "mean_time", "collision_rate",
             "invalid_rate", "optimality_gap", "decision_ms"}

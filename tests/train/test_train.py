@@ -34,7 +34,7 @@ def test_unknown_ids_are_errors_not_defaults(tmp_path):
     partial = tmp_path / "partial.yml"
     partial.write_text(f"{ENV}:\n  n_timesteps: 10\n")
     with pytest.raises(ValueError, match="no entry for"):
-        hyperparams_for("IKBranch/Cartesian-v0", "ppo", partial)
+        hyperparams_for("IKBranch/Cartesian-v1", "ppo", partial)
     with pytest.raises(ValueError, match="unknown algorithm"):
         hyperparams_for(ENV, "dqn")
 

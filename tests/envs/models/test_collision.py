@@ -10,7 +10,8 @@ import pytest
 
 from envs.kinematics import ARM_NAMES, make_arm
 from envs.models import CollisionChecker, arm_spec, build_model
-from envs.models.builders import add_part, add_static_body
+from envs.models.builders import add_part, add_static_body, compile_spec
+from envs.models.collision import candidate_pairs
 from tests.envs.models.conftest import TWO_ARM_NAMES, scene_cases
 
 
@@ -207,3 +208,128 @@ def test_bad_input_is_rejected():
         checker.collides(np.full(4, np.nan))
     with pytest.raises(ValueError):
         CollisionChecker(build_model("cylindrical4"), resolution=0.0)
+
+
+# ------------------------------------------------------------ conservative advancement
+def _short_paths(arm, rng, count):
+    """Paths from random configurations by random joint moves of up to a quarter range."""
+    lower, upper = arm.joint_limits[:, 0], arm.joint_limits[:, 1]
+    q0 = rng.uniform(lower, upper, size=(count, arm.dof))
+    q1 = np.clip(q0 + rng.uniform(-0.25, 0.25, size=q0.shape) * (upper - lower), lower, upper)
+    return q0, q1
+
+
+@pytest.mark.parametrize(("arm_name", "scene"), scene_cases())
+def test_advancing_loop_equals_the_flat_grid_check(arm_name, scene):
+    # The loop backend skips samples it proves free; its verdicts and first colliding
+    # samples must be exactly those of checking every grid sample (the batch backend).
+    arm = make_arm(arm_name)
+    model = build_model(arm_name, scene)
+    loop = CollisionChecker(model, dof=arm.dof, backend="loop")
+    flat = CollisionChecker(model, dof=arm.dof, backend="batch", nthread=1)
+    q0, q1 = _short_paths(arm, np.random.default_rng(5), 40)
+    collides, first = loop.check_paths(q0, q1)
+    np.testing.assert_equal((collides, first), flat.check_paths(q0, q1))
+    if scene != "empty" and arm_name != "rod_mechanism":  # the rod stays below the clutter
+        assert 0 < collides.sum() < len(q0)
+
+
+def test_candidate_pairs_hold_every_contact():
+    for arm_name, scene in scene_cases():
+        arm = make_arm(arm_name)
+        model = build_model(arm_name, scene)
+        pairs = {tuple(sorted(p)) for p in candidate_pairs(model).tolist()}
+        data = mujoco.MjData(model)
+        rng = np.random.default_rng(6)
+        lower, upper = arm.joint_limits[:, 0], arm.joint_limits[:, 1]
+        seen = 0
+        for q in rng.uniform(lower, upper, size=(200, arm.dof)):
+            data.qpos[: arm.dof] = q
+            mujoco.mj_kinematics(model, data)
+            mujoco.mj_collision(model, data)
+            for contact in data.contact[: data.ncon]:
+                assert tuple(sorted((contact.geom1, contact.geom2))) in pairs, arm_name
+                seen += 1
+        assert seen > 0 or scene == "empty" or arm_name == "rod_mechanism"
+
+
+def test_collision_boxes_become_meshes_on_the_same_corners():
+    arm = make_arm("anthropomorphic")
+    spec, _ = arm_spec(arm, tool=True)
+    boxes_model = spec.compile()
+    mesh_model = compile_spec(spec)
+    converted = [
+        g for g in range(boxes_model.ngeom)
+        if boxes_model.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX and boxes_model.geom_contype[g]
+    ]
+    assert converted
+    q = np.random.default_rng(7).uniform(arm.joint_limits[:, 0], arm.joint_limits[:, 1])
+    corners = {}
+    for model in (boxes_model, mesh_model):
+        data = mujoco.MjData(model)
+        data.qpos[: arm.dof] = q
+        mujoco.mj_kinematics(model, data)
+        for g in converted:
+            g_here = model.geom(boxes_model.geom(g).name).id
+            rotation = data.geom_xmat[g_here].reshape(3, 3)
+            if model is boxes_model:
+                local = np.array(list(itertools.product((-1, 1), repeat=3))) * model.geom_size[g]
+            else:
+                assert model.geom_type[g_here] == mujoco.mjtGeom.mjGEOM_MESH
+                mesh = model.geom_dataid[g_here]
+                start, count = model.mesh_vertadr[mesh], model.mesh_vertnum[mesh]
+                local = model.mesh_vert[start : start + count]
+            corners.setdefault(g, []).append(data.geom_xpos[g_here] + local @ rotation.T)
+    for before, after in corners.values():
+        # Mesh vertices are stored in single precision: equal to ~1e-8 m.
+        assert len(after) == 8
+        gaps = np.linalg.norm(before[:, None] - after[None], axis=-1)
+        assert gaps.min(axis=1).max() < 1e-6 and gaps.min(axis=0).max() < 1e-6
+
+
+def test_box_pair_inside_the_clearance_is_reported():
+    # Poses from an Anthropomorphic-v0 path where MuJoCo's box-box collider reported
+    # nothing although the gripper was 8.8 mm from an obstacle (δ = 10 mm).
+    spec = mujoco.MjSpec()
+    spec.compiler.degree = False
+    add_part(add_static_body(spec, "obstacle"), "obstacle", "box",
+             [0.08459633134906212, 0.08459633134906212, 0.05], (1, 1, 1, 1),
+             pos=[0.46866854420298976, 1.0438620576081932, 0.05])
+    body = spec.worldbody.add_body()
+    body.name = "gripper"
+    body.pos = [0.3792117614881976, 1.1926795257864307, 0.1245263783321062]
+    body.quat = [0.5439240934929546, -0.18155781241441532, 0.08804163288812153,
+                 -0.8145133590970458]
+    joint = body.add_joint()
+    joint.type = mujoco.mjtJoint.mjJNT_SLIDE
+    add_part(body, "gripper", "box", [0.06, 0.03, 0.02], (1, 1, 1, 1))
+    model = compile_spec(spec)
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    distance = mujoco.mj_geomDistance(
+        model, data, model.geom("obstacle").id, model.geom("gripper").id, 1.0, None
+    )
+    assert 0.008 < distance < 0.0095
+    checker = CollisionChecker(model, dof=1)
+    assert checker.collides(np.zeros(1))
+    assert [c.distance for c in checker.contacts(np.zeros(1))] == pytest.approx([distance])
+
+
+@pytest.mark.parametrize(("arm_name", "scene"), scene_cases())
+def test_clearance_verdict_is_the_exact_distance(arm_name, scene):
+    # A configuration collides exactly when some candidate pair is closer than δ by
+    # mj_geomDistance (away from a thin band where the two computations may round apart).
+    arm = make_arm(arm_name)
+    model = build_model(arm_name, scene)
+    checker = CollisionChecker(model, dof=arm.dof, backend="loop")
+    pairs = candidate_pairs(model)
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(8)
+    q = rng.uniform(arm.joint_limits[:, 0], arm.joint_limits[:, 1], size=(150, arm.dof))
+    verdicts = checker.collides(q)
+    for row, verdict in zip(q, verdicts, strict=True):
+        data.qpos[: arm.dof] = row
+        mujoco.mj_kinematics(model, data)
+        nearest = min(mujoco.mj_geomDistance(model, data, a, b, 1.0, None) for a, b in pairs)
+        if abs(nearest - checker.resolution) > 1e-6:
+            assert verdict == (nearest < checker.resolution), (row, nearest)

@@ -20,6 +20,11 @@ def half_space(arm: Arm):
     return is_free
 
 
+def all_paths_free(q0, q1):
+    """A path predicate for scenes where only configurations can collide."""
+    return np.ones(len(np.asarray(q0)), dtype=bool)
+
+
 def assert_same_task(a: Task, b: Task) -> None:
     assert np.array_equal(a.start, b.start) and np.array_equal(a.poses, b.poses)
     assert a.free_start == b.free_start

@@ -10,6 +10,7 @@ from envs.kinematics import make_arm
 from envs.tasks import TASKS
 from envs.tasks.paths import TOOL_OFFSET
 from tests.envs.tasks.helpers import (
+    all_paths_free,
     assert_every_waypoint_has_a_free_branch,
     assert_same_task,
     half_space,
@@ -30,9 +31,9 @@ def _object_points(poses):
 def test_deterministic_and_every_waypoint_has_a_free_branch(task_name, arm_name):
     arm, generator = make_arm(arm_name), TASKS[task_name]
     is_free = half_space(arm)
-    task = generator(arm, np.random.default_rng(1), 6, is_free)
+    task = generator(arm, np.random.default_rng(1), 6, is_free, all_paths_free)
     assert task.poses.shape == (6, 4, 4)
-    assert_same_task(task, generator(arm, np.random.default_rng(1), 6, is_free))
+    assert_same_task(task, generator(arm, np.random.default_rng(1), 6, is_free, all_paths_free))
     assert_every_waypoint_has_a_free_branch(arm, task, is_free)
     rotations = task.poses[:, :3, :3]
     assert np.allclose(rotations @ rotations.transpose(0, 2, 1), np.eye(3), atol=1e-12)
@@ -52,7 +53,9 @@ def _horizontal_centre(points, normals):
 def test_curves_carry_the_frenet_frame(task_name):
     arm = make_arm("anthropomorphic")
     for seed in range(3):
-        poses = TASKS[task_name](arm, np.random.default_rng(seed), 8, half_space(arm)).poses
+        poses = TASKS[task_name](
+            arm, np.random.default_rng(seed), 8, half_space(arm), all_paths_free
+        ).poses
         x, y, z = (poses[:, :3, i] for i in range(3))
         points = _object_points(poses)
         # Principal normal: horizontal and pointing at the (vertical) axis, all the same
@@ -79,7 +82,9 @@ def test_curves_carry_the_frenet_frame(task_name):
 def test_line_keeps_a_constant_orientation_along_a_straight_segment():
     arm = make_arm("anthropomorphic")
     for seed in range(3):
-        poses = TASKS["line"](arm, np.random.default_rng(seed), 7, half_space(arm)).poses
+        poses = TASKS["line"](
+            arm, np.random.default_rng(seed), 7, half_space(arm), all_paths_free
+        ).poses
         assert np.array_equal(poses[1:, :3, :3], np.broadcast_to(poses[0, :3, :3], (6, 3, 3)))
         offsets = poses[:, :3, 3] - poses[0, :3, 3]
         length = np.linalg.norm(offsets[-1])

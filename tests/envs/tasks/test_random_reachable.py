@@ -8,6 +8,7 @@ import pytest
 from envs.kinematics import ARM_NAMES, make_arm
 from envs.tasks import TASKS
 from tests.envs.tasks.helpers import (
+    all_paths_free,
     assert_every_waypoint_has_a_free_branch,
     assert_same_task,
     half_space,
@@ -21,11 +22,12 @@ def test_deterministic_and_every_waypoint_has_a_free_branch(arm_name):
     arm = make_arm(arm_name)
     is_free = half_space(arm)
     generator.check_arm(arm, "empty")  # every arm
-    task = generator(arm, np.random.default_rng(4), 5, is_free)
+    task = generator(arm, np.random.default_rng(4), 5, is_free, all_paths_free)
     assert task.poses.shape == (5, 4, 4) and not task.free_start
-    assert_same_task(task, generator(arm, np.random.default_rng(4), 5, is_free))
-    assert not np.array_equal(task.poses, generator(arm, np.random.default_rng(5), 5,
-                                                    is_free).poses)
+    assert_same_task(task, generator(arm, np.random.default_rng(4), 5, is_free, all_paths_free))
+    assert not np.array_equal(
+        task.poses, generator(arm, np.random.default_rng(5), 5, is_free, all_paths_free).poses
+    )
     assert_every_waypoint_has_a_free_branch(arm, task, is_free)
     assert np.all(arm.within_limits(task.start))
 
@@ -33,4 +35,43 @@ def test_deterministic_and_every_waypoint_has_a_free_branch(arm_name):
 def test_a_scene_without_free_space_is_reported():
     arm = make_arm("cartesian")
     with pytest.raises(RuntimeError, match="collision-free"):
-        generator(arm, np.random.default_rng(0), 3, lambda q: np.zeros(len(q), dtype=bool))
+        generator(
+            arm, np.random.default_rng(0), 3, lambda q: np.zeros(len(q), dtype=bool), all_paths_free
+        )
+
+
+def test_consecutive_waypoints_are_joined_by_a_free_path():
+    # Paths that turn φ1 by more than a sixth of its range are "blocked": the task must
+    # still have a chain of branches, start to last waypoint, made of allowed paths.
+    arm = make_arm("anthropomorphic")
+    is_free = half_space(arm)
+    limit = np.ptp(arm.joint_limits[0]) / 6
+
+    def short_turns(q0, q1):
+        return np.abs(np.asarray(q1)[:, 0] - np.asarray(q0)[:, 0]) <= limit
+
+    blocked = 0
+    for seed in range(10):
+        task = generator(arm, np.random.default_rng(seed), 6, is_free, short_turns)
+        candidates, valid = arm.ik(task.poses)
+        reachable = [task.start]
+        for rows, ok in zip(candidates, valid, strict=True):
+            rows = rows[ok]
+            allowed = np.array(
+                [short_turns(np.array(reachable), np.repeat(q[None], len(reachable), 0)).any()
+                 for q in rows]
+            )
+            reachable = list(rows[allowed])
+            assert reachable, f"seed {seed}: no free path into a waypoint"
+        unchecked = generator(arm, np.random.default_rng(seed), 6, is_free, all_paths_free)
+        blocked += not np.array_equal(unchecked.poses, task.poses)
+    assert blocked > 0  # the predicate really redrew some waypoints
+
+
+def test_a_chain_that_cannot_move_is_reported():
+    arm = make_arm("cartesian")
+    with pytest.raises(RuntimeError, match="no collision-free path"):
+        generator(
+            arm, np.random.default_rng(0), 3, half_space(arm),
+            lambda q0, q1: np.zeros(len(q0), dtype=bool),
+        )

@@ -8,6 +8,7 @@ import pytest
 from envs.kinematics import ARM_NAMES, make_arm
 from envs.tasks import TASKS
 from tests.envs.tasks.helpers import (
+    all_paths_free,
     assert_every_waypoint_has_a_free_branch,
     assert_same_task,
     half_space,
@@ -21,9 +22,9 @@ DUALS = [name for name in ARM_NAMES if name.startswith("dual_")]
 def test_deterministic_reachable_and_free(arm_name):
     arm = make_arm(arm_name)
     is_free = half_space(arm)
-    task = generator(arm, np.random.default_rng(2), 8, is_free)
+    task = generator(arm, np.random.default_rng(2), 8, is_free, all_paths_free)
     assert task.poses.shape == (8, 4, 4)
-    assert_same_task(task, generator(arm, np.random.default_rng(2), 8, is_free))
+    assert_same_task(task, generator(arm, np.random.default_rng(2), 8, is_free, all_paths_free))
     assert_every_waypoint_has_a_free_branch(arm, task, is_free)
     # The sweep ends where it is going: the last waypoint is fk of a free configuration
     # that the IK reproduces, and the first lies near the start (cosine easing).

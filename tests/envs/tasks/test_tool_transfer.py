@@ -10,7 +10,11 @@ from envs.kinematics.paper_example import example_poses, rack_slot_poses
 from envs.models import CollisionChecker, build_arm_model
 from envs.tasks import TASKS
 from envs.tasks.tool_transfer import RACK_CLEARANCE
-from tests.envs.tasks.helpers import assert_every_waypoint_has_a_free_branch, assert_same_task
+from tests.envs.tasks.helpers import (
+    all_paths_free,
+    assert_every_waypoint_has_a_free_branch,
+    assert_same_task,
+)
 
 ARM = make_arm("anthropomorphic")
 
@@ -34,13 +38,15 @@ def _same_pose_up_to_grip(pose, reference):
 
 def test_tool_changes_cycle_above_slot_slot_above_slot_spindle():
     rng = np.random.default_rng(0)
-    task = TASKS["tool_changes"](ARM, rng, 8, _everything_free)
-    again = TASKS["tool_changes"](ARM, np.random.default_rng(0), 8, _everything_free)
+    task = TASKS["tool_changes"](ARM, rng, 8, _everything_free, all_paths_free)
+    again = TASKS["tool_changes"](
+        ARM, np.random.default_rng(0), 8, _everything_free, all_paths_free
+    )
     assert_same_task(task, again)
     slots, spindle = rack_slot_poses(), example_poses()[1]
     assert not task.free_start and len(task.poses) == 8
     for tool in range(2):
-        above, slot, above_again, into = task.poses[4 * tool: 4 * tool + 4]
+        above, slot, above_again, into = task.poses[4 * tool : 4 * tool + 4]
         assert any(_same_pose_up_to_grip(slot, s) for s in slots)
         assert np.array_equal(above, above_again)
         np.testing.assert_allclose(above[:3, 3] - slot[:3, 3], [0.0, 0.0, RACK_CLEARANCE])
@@ -49,17 +55,22 @@ def test_tool_changes_cycle_above_slot_slot_above_slot_spindle():
         grip_at_rack = slots[0][:3, :3].T @ slot[:3, :3]
         grip_at_spindle = spindle[:3, :3].T @ into[:3, :3]
         np.testing.assert_allclose(grip_at_rack, grip_at_spindle, atol=1e-12)
-    drawn = [TASKS["tool_changes"](ARM, np.random.default_rng(seed), 8, _everything_free)
-             for seed in range(20)]
-    used_slots = {int(np.argmin([np.linalg.norm(t.poses[1][:3, 3] - s[:3, 3]) for s in slots]))
-                  for t in drawn}
+    drawn = [
+        TASKS["tool_changes"](ARM, np.random.default_rng(seed), 8, _everything_free, all_paths_free)
+        for seed in range(20)
+    ]
+    used_slots = {
+        int(np.argmin([np.linalg.norm(t.poses[1][:3, 3] - s[:3, 3]) for s in slots])) for t in drawn
+    }
     assert used_slots == set(range(len(slots)))  # every slot gets drawn
     grips = {int(np.sign(t.poses[1][2, 0])) for t in drawn}  # x3 down or up
     assert len(grips) == 2  # both grips get drawn
     starts = {t.start.tobytes() for t in drawn}
     assert len(starts) > 5  # the start is where an earlier job left the arm, not fixed
     # Cut anywhere: the first waypoints of the same cycle.
-    short = TASKS["tool_changes"](ARM, np.random.default_rng(0), 3, _everything_free)
+    short = TASKS["tool_changes"](
+        ARM, np.random.default_rng(0), 3, _everything_free, all_paths_free
+    )
     np.testing.assert_array_equal(short.poses, task.poses[:3])
 
 
@@ -67,7 +78,7 @@ def test_tool_changes_start_collision_free():
     def is_free(q):  # forbid every start but home
         return np.all(np.asarray(q) == ARM.home, axis=-1)
 
-    task = TASKS["tool_changes"](ARM, np.random.default_rng(4), 8, is_free)
+    task = TASKS["tool_changes"](ARM, np.random.default_rng(4), 8, is_free, all_paths_free)
     np.testing.assert_array_equal(task.start, ARM.home)
 
 
@@ -77,24 +88,28 @@ def test_tool_changes_poses_have_free_branches_in_the_milling_cell():
     def is_free(q):
         return ~checker.collides(q)
 
-    task = TASKS["tool_changes"](ARM, np.random.default_rng(0), 6, is_free)
+    task = TASKS["tool_changes"](ARM, np.random.default_rng(0), 6, is_free, all_paths_free)
     assert_every_waypoint_has_a_free_branch(ARM, task, is_free)
 
 
 def test_the_generated_poses_are_not_shared_state():
-    first = TASKS["tool_changes"](ARM, np.random.default_rng(0), 4, _everything_free)
+    first = TASKS["tool_changes"](
+        ARM, np.random.default_rng(0), 4, _everything_free, all_paths_free
+    )
     expected = first.poses.copy()
     first.poses[:] = 0.0  # a caller scribbling on its task must not change the next one
-    second = TASKS["tool_changes"](ARM, np.random.default_rng(0), 4, _everything_free)
+    second = TASKS["tool_changes"](
+        ARM, np.random.default_rng(0), 4, _everything_free, all_paths_free
+    )
     assert np.array_equal(second.poses, expected)
 
 
 def test_paper_transfer_is_the_worked_example():
-    task = TASKS["paper_transfer"](ARM, np.random.default_rng(0), 2, _never_called)
+    task = TASKS["paper_transfer"](ARM, np.random.default_rng(0), 2, _never_called, all_paths_free)
     assert task.free_start and np.array_equal(task.poses, example_poses())
     assert TASKS["paper_transfer"].fixed_waypoints
     with pytest.raises(ValueError, match="exactly 2"):
-        TASKS["paper_transfer"](ARM, np.random.default_rng(0), 3, _never_called)
+        TASKS["paper_transfer"](ARM, np.random.default_rng(0), 3, _never_called, all_paths_free)
 
 
 @pytest.mark.parametrize("arm_name", [n for n in ARM_NAMES if n != "anthropomorphic"])
