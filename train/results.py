@@ -47,6 +47,9 @@ def produce(env_id: str, algos: tuple[str, ...], seed: int = 0) -> dict:
     from train.hyperparams import hyperparams_for
 
     record = {"env": env_id, "eval_seed": EVAL_SEED, "episodes": EVAL_EPISODES, "training": {}}
+    stored = RESULTS / f"{env_name(env_id)}.json"
+    # Re-evaluating a committed model keeps the training time measured when it was trained.
+    trained = json.loads(stored.read_text())["training"] if stored.exists() else {}
     for algo in algos:
         target = model_path(env_id, algo)
         run_dir = ROOT / "runs" / "results" / env_name(env_id) / algo
@@ -58,7 +61,7 @@ def produce(env_id: str, algos: tuple[str, ...], seed: int = 0) -> dict:
             shutil.copyfile(run_dir / "model.zip", target)
             minutes = (time.perf_counter() - start) / 60
         else:
-            minutes = None
+            minutes = trained.get(algo, {}).get("wall_minutes")
         params = hyperparams_for(env_id, algo)
         record["training"][algo] = {
             "timesteps": params["n_timesteps"], "n_envs": params["n_envs"], "seed": seed,

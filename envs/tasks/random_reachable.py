@@ -14,8 +14,11 @@ from .base import (
     task_generator,
 )
 
-#: Fresh draws tried for one waypoint before the chain is given up as stuck.
-MAX_REDRAWS = 100
+#: Fresh draws for one waypoint before the configuration it starts from is redrawn too (a
+#: configuration tucked in among obstacles may have no free straight path out).
+REDRAWS_BEFORE_BACKTRACK = 20
+#: Fresh draws in all before the scene is declared too crowded.
+MAX_DRAWS = 2000
 
 
 @task_generator(default_waypoints=8)
@@ -29,20 +32,30 @@ def random_reachable(
     """Start and waypoints from a chain of configurations drawn inside the limits.
 
     Every configuration is collision-free and so is the straight joint-space path from each
-    to the next (a draw whose path from the previous one collides is replaced by a fresh
-    draw). Each waypoint's own configuration is one of its IK branches, so the chain is a
+    to the next: a draw whose path from the previous one collides is replaced by a fresh
+    draw, and after ``REDRAWS_BEFORE_BACKTRACK`` failures the previous one is redrawn too. Each waypoint's own configuration is one of its IK branches, so the chain is a
     solution of the task that never collides: a perfect policy succeeds on every task
     (the optimum may still take other branches).
     """
     chain = list(sample_free_configurations(arm, rng, n_waypoints + 1, is_free))
-    for index in range(1, n_waypoints + 1):
-        for _ in range(MAX_REDRAWS):
-            if is_path_free(chain[index - 1][None], chain[index][None])[0]:
-                break
-            chain[index] = sample_free_configurations(arm, rng, 1, is_free)[0]
-        else:
+    index, tries, draws = 1, 0, 0
+    while index <= n_waypoints:
+        if is_path_free(chain[index - 1][None], chain[index][None])[0]:
+            index, tries = index + 1, 0
+            continue
+        draws += 1
+        if draws > MAX_DRAWS:
             raise RuntimeError(
-                f"{arm.name}: no collision-free path out of waypoint {index - 1} in "
-                f"{MAX_REDRAWS} draws; the scene leaves too little free space"
+                f"{arm.name}: no chain of collision-free paths after {MAX_DRAWS} draws; "
+                "the scene leaves too little free space"
             )
+        tries += 1
+        if tries >= REDRAWS_BEFORE_BACKTRACK:
+            tries = 0
+            if index > 1:
+                index -= 1  # redraw the configuration we came from (checked again below)
+            else:
+                chain[0] = sample_free_configurations(arm, rng, 1, is_free)[0]
+                continue
+        chain[index] = sample_free_configurations(arm, rng, 1, is_free)[0]
     return Task(start=chain[0], poses=arm.fk(np.array(chain[1:])))

@@ -70,7 +70,7 @@ def test_consecutive_waypoints_are_joined_by_a_free_path():
 
 def test_a_chain_that_cannot_move_is_reported():
     arm = make_arm("cartesian")
-    with pytest.raises(RuntimeError, match="no collision-free path"):
+    with pytest.raises(RuntimeError, match="no chain of collision-free paths"):
         generator(
             arm, np.random.default_rng(0), 3, half_space(arm),
             lambda q0, q1: np.zeros(len(q0), dtype=bool),
