@@ -21,6 +21,8 @@ from .collision import (
     CollisionChecker,
     Contact,
     PathResult,
+    body_lever_arms,
+    candidate_pairs,
     lever_arms,
 )
 from .model import arm_spec, build_arm_model, build_model
@@ -40,8 +42,10 @@ __all__ = [
     "Contact",
     "PathResult",
     "arm_spec",
+    "body_lever_arms",
     "build_arm_model",
     "build_model",
+    "candidate_pairs",
     "lever_arms",
     "milling_cell_poses",
     "register_tree_builder",

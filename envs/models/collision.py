@@ -52,7 +52,8 @@ box–box collider misses pairs inside their margin in some orientations
 (google-deepmind/mujoco#2471; a gripper 8.8 mm from an obstacle went unreported), so
 collision boxes are built as convex meshes (``envs.models.builders.compile_spec``); and
 the body-level midphase dropped a gripper–floor pair 6 mm apart when the margins are set
-on the compiled model, so the checker disables the midphase (our bodies carry few geoms).
+on the compiled model, so the checker disables the midphase (moving bodies carry ≤ 3
+collision geoms).
 
 Backends (identical results, see ``benchmarks/collision_throughput.py``):
 

@@ -33,9 +33,10 @@ def random_reachable(
 
     Every configuration is collision-free and so is the straight joint-space path from each
     to the next: a draw whose path from the previous one collides is replaced by a fresh
-    draw, and after ``REDRAWS_BEFORE_BACKTRACK`` failures the previous one is redrawn too. Each waypoint's own configuration is one of its IK branches, so the chain is a
-    solution of the task that never collides: a perfect policy succeeds on every task
-    (the optimum may still take other branches).
+    draw, and after ``REDRAWS_BEFORE_BACKTRACK`` failures the previous one is redrawn too.
+    Each waypoint's own configuration is one of its IK branches, so the chain is a solution
+    of the task that never collides: a perfect policy succeeds on every task (the optimum
+    may still take other branches).
     """
     chain = list(sample_free_configurations(arm, rng, n_waypoints + 1, is_free))
     index, tries, draws = 1, 0, 0
