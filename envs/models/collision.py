@@ -447,9 +447,8 @@ class CollisionChecker:
             mujoco.mj_kinematics(model, data)
             # Lower bounds from bounding spheres (half-spaces for planes) ...
             gap = centre[sphere_first] - centre[sphere_second]
-            above = np.einsum(
-                "ij,ij->i", frame[plane_first, 6:9], centre[plane_second] - centre[plane_first]
-            )
+            normal = frame[plane_first][:, 2::3]  # each plane's z axis (row-major xmat)
+            above = np.einsum("ij,ij->i", normal, centre[plane_second] - centre[plane_first])
             bound = np.concatenate([np.sqrt(np.einsum("ij,ij->i", gap, gap)), above]) - radius
             steps = ((bound - margin) / order_rate).tolist()
             # ... then exact distances, nearest-in-time first, only while a pair's bound

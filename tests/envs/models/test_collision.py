@@ -333,3 +333,28 @@ def test_clearance_verdict_is_the_exact_distance(arm_name, scene):
         nearest = min(mujoco.mj_geomDistance(model, data, a, b, 1.0, None) for a, b in pairs)
         if abs(nearest - checker.resolution) > 1e-6:
             assert verdict == (nearest < checker.resolution), (row, nearest)
+
+
+def test_advancing_loop_handles_a_tilted_plane():
+    # The floor is level; a wall-like tilted plane checks the half-space bound's normal.
+    arm = make_arm("anthropomorphic")
+    spec, _ = arm_spec(arm)
+    wall = spec.worldbody.add_geom()
+    wall.name = "wall"
+    wall.type = mujoco.mjtGeom.mjGEOM_PLANE
+    wall.size = [0.0, 0.0, 0.05]
+    wall.pos = [1.2, 0.0, 1.0]
+    wall.quat = [np.cos(0.6), 0.0, -np.sin(0.6), 0.0]  # normal tilted 69° from vertical
+    model = compile_spec(spec)
+    loop = CollisionChecker(model, dof=arm.dof, backend="loop")
+    flat = CollisionChecker(model, dof=arm.dof, backend="batch", nthread=1)
+    q0, q1 = _short_paths(arm, np.random.default_rng(9), 60)
+    collides, first = loop.check_paths(q0, q1)
+    np.testing.assert_equal((collides, first), flat.check_paths(q0, q1))
+    touched = {
+        name
+        for i in np.flatnonzero(collides)
+        for c in loop.contacts(q0[i] + first[i] * (q1[i] - q0[i]))
+        for name in (c.geom1, c.geom2)
+    }
+    assert "wall" in touched
