@@ -29,10 +29,13 @@ def model_class(path: str | Path) -> type[BaseAlgorithm]:
             data = json.loads(archive.read("data"))
     except (OSError, KeyError, zipfile.BadZipFile, json.JSONDecodeError) as error:
         raise ValueError(f"{path}: not an SB3 model zip ({error})") from error
-    module = str(data.get("policy_class", {}).get("__module__", ""))
-    if "maskable" in module:
+    policy = data.get("policy_class", {})
+    module = str(policy.get("__module__", ""))
+    # Our own policy classes (agents.branch_policy) say whether they mask.
+    masks = policy.get("action_masks")
+    if "maskable" in module or masks is True:
         return MaskablePPO
-    if module.startswith("stable_baselines3") and "clip_range" in data:
+    if (module.startswith("stable_baselines3") or masks is False) and "clip_range" in data:
         return PPO
     raise ValueError(f"{path}: a {module or 'unknown'} policy; expected PPO or MaskablePPO")
 

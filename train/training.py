@@ -75,6 +75,19 @@ class RunConfig:
     torch_threads: int = 1
 
 
+def branch_policy(algo: str, factory, overrides: dict[str, Any]) -> tuple[type, dict[str, Any]]:
+    """``policy: BranchPolicy`` in a config: the class for ``algo`` and its policy_kwargs,
+    built from the env's observation layout (``agents.branch_policy``)."""
+    from agents.branch_policy import BranchPolicy, MaskableBranchPolicy, branch_policy_kwargs
+
+    probe = factory()
+    try:
+        kwargs = branch_policy_kwargs(probe, **overrides)
+    finally:
+        probe.close()
+    return (MaskableBranchPolicy if algo == "maskable_ppo" else BranchPolicy), kwargs
+
+
 def resolve(run: RunConfig) -> dict[str, Any]:
     """The entry of the YAML file with the CLI's overrides applied (CLI wins)."""
     params = hyperparams_for(run.env_id, run.algo, run.config)
@@ -147,8 +160,13 @@ def train(run: RunConfig, argv: list[str] | None = None):
         if run.resume:
             model = algorithm.load(latest, env=train_env, tensorboard_log=str(run_dir / "tb"))
         else:
+            policy = params["policy"]
+            if policy == "BranchPolicy":
+                policy, algo_kwargs["policy_kwargs"] = branch_policy(
+                    run.algo, factory, algo_kwargs.get("policy_kwargs") or {}
+                )
             model = algorithm(
-                params["policy"], train_env, seed=run.seed, verbose=run.verbose,
+                policy, train_env, seed=run.seed, verbose=run.verbose,
                 tensorboard_log=str(run_dir / "tb"), **algo_kwargs,
             )
         per_env = lambda steps: max(1, steps // n_envs)  # noqa: E731 (callbacks count vec steps)

@@ -1,0 +1,131 @@
+"""A policy that scores every branch with one shared network (``policy: BranchPolicy``).
+
+The default ``MlpPolicy`` reads the flat observation as one vector and must learn, for
+each of the K output logits separately, which of its inputs describe that branch. Branch
+choice is the same question asked K times ("how good is going to this candidate?"), so
+this policy asks it once: for each branch k of the next waypoint it gathers that branch's
+own slice of the observation (its normalised configuration, validity, endpoint collision,
+travel and path collision from where the arm stands; with lookahead ≥ 1 its travel to
+every candidate of the waypoint after, and that waypoint's validity and endpoint flags),
+appends the shared context (the current configuration and progress), and maps it through
+one MLP to a hidden vector h_k. The logit of branch k is a linear read-out of h_k; the value
+function sees the mean of the h_k (and so does not depend on the order of the branches).
+The actor is thus equivariant to the order of the branches.
+
+Nothing here is specific to the algorithm: :class:`BranchPolicy` serves PPO and
+:class:`MaskableBranchPolicy` MaskablePPO; :func:`branch_policy_kwargs` builds the
+``policy_kwargs`` from an env's ``observation_layout``. The classes live in ``agents`` so
+that loading a saved model needs no training code.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import torch
+from sb3_contrib.common.maskable.policies import MaskableActorCriticPolicy
+from stable_baselines3.common.policies import ActorCriticPolicy
+from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
+from torch import nn
+
+from .base import unwrap
+
+
+class BranchFeatures(BaseFeaturesExtractor):
+    """Per-branch scores (K) followed by the pooled branch embedding (``hidden``)."""
+
+    def __init__(
+        self,
+        observation_space: gym.spaces.Box,
+        layout: dict[str, list[int]],
+        n_branches: int,
+        dof: int,
+        hidden: int = 64,
+    ) -> None:
+        super().__init__(observation_space, features_dim=n_branches + hidden)
+        self.k, self.dof = n_branches, dof
+        index = {name: torch.arange(start, stop) for name, (start, stop) in layout.items()}
+        k = n_branches
+        # (K, per-branch columns): which observation entries describe branch k.
+        own = [
+            index["slot0/candidates"].view(k, dof),
+            index["slot0/valid"].view(k, 1),
+            index["slot0/endpoint_collision"].view(k, 1),
+            index["slot0/travel"].view(k, 1),
+            index["slot0/path_collision"].view(k, 1),
+        ]
+        shared = [index["q"], index["progress"]]
+        if "slot1/travel" in index:
+            own.append(index["slot1/travel"].view(k, k))  # row k: from branch k onwards
+            shared += [index["slot1/present"], index["slot1/valid"],
+                       index["slot1/endpoint_collision"]]
+        self.register_buffer("own", torch.cat(own, dim=1), persistent=False)
+        self.register_buffer("shared", torch.cat(shared), persistent=False)
+        width = self.own.shape[1] + len(self.shared)
+        self.embed = nn.Sequential(
+            nn.Linear(width, hidden), nn.Tanh(), nn.Linear(hidden, hidden), nn.Tanh()
+        )
+        self.score = nn.Linear(hidden, 1)
+
+    def forward(self, observations: torch.Tensor) -> torch.Tensor:
+        per_branch = observations[:, self.own]  # (B, K, own)
+        context = observations[:, self.shared].unsqueeze(1).expand(-1, self.k, -1)
+        embedded = self.embed(torch.cat([per_branch, context], dim=-1))  # (B, K, hidden)
+        return torch.cat([self.score(embedded).squeeze(-1), embedded.mean(dim=1)], dim=-1)
+
+
+class _FirstColumns(nn.Module):
+    """The action logits are the extractor's first K outputs, unchanged."""
+
+    def __init__(self, count: int) -> None:
+        super().__init__()
+        self.count = count
+
+    def forward(self, latent: torch.Tensor) -> torch.Tensor:
+        return latent[:, : self.count]
+
+
+class _BranchScores:
+    """Replaces the action head by the branch scores (the actor's ``net_arch`` is empty)."""
+
+    def _build(self, lr_schedule) -> None:
+        super()._build(lr_schedule)
+        if not isinstance(self.features_extractor, BranchFeatures):
+            raise ValueError("BranchPolicy needs features_extractor_class=BranchFeatures")
+        if self.mlp_extractor.latent_dim_pi != self.features_extractor.features_dim:
+            raise ValueError("BranchPolicy needs an empty actor net_arch (pi=[])")
+        self.action_net = _FirstColumns(self.action_space.n)
+        # The optimiser was built over the replaced head's parameters: build it again.
+        self.optimizer = self.optimizer_class(
+            self.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs
+        )
+
+
+class BranchPolicy(_BranchScores, ActorCriticPolicy):
+    """PPO's actor-critic with shared per-branch scoring."""
+
+    #: Read by ``agents.sb3.model_class`` from the saved zip (no unpickling needed).
+    action_masks = False
+
+
+class MaskableBranchPolicy(_BranchScores, MaskableActorCriticPolicy):
+    """MaskablePPO's actor-critic with shared per-branch scoring."""
+
+    action_masks = True
+
+
+def branch_policy_kwargs(env: gym.Env, hidden: int = 64, **overrides: Any) -> dict[str, Any]:
+    """``policy_kwargs`` for either class on ``env`` (an IKBranchEnv, possibly wrapped)."""
+    base = unwrap(env)
+    layout = {name: [int(a), int(b)] for name, (a, b) in base.observation_layout.items()}
+    kwargs: dict[str, Any] = {
+        "features_extractor_class": BranchFeatures,
+        "features_extractor_kwargs": {
+            "layout": layout, "n_branches": base.arm.n_branches, "dof": base.arm.dof,
+            "hidden": hidden,
+        },
+        "net_arch": {"pi": [], "vf": [64, 64]},
+    }
+    kwargs.update(overrides)
+    return kwargs
