@@ -14,6 +14,10 @@ name               policy
 ``random``         uniform over the valid branches (``seed``)
 ``fixed``          one branch (``branch``: index or label), else the nearest valid one
 ================== =====================================================================
+
+``agents.branch_policy`` holds the SB3 policy classes that score every branch with one
+shared network (``policy: BranchPolicy`` in ``configs/``); like ``agents.sb3`` it is
+imported on demand.
 """
 
 from __future__ import annotations
