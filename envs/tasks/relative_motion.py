@@ -32,6 +32,10 @@ def relative_motion(
     cosine-eased straight line in joint space; the task is the relative pose M34 = fk(q(t))
     at ``n_waypoints`` instants, so every waypoint is reachable by construction. The agent
     is free to realise each with another branch, which is the point.
+
+    Only the sweep's sampled configurations are checked, not the straight paths between
+    them (unlike ``random``): some tasks have no collision-free solution (the oracle
+    succeeds on 86 % of DualRRPRPP-v0's published tasks, 98–100 % on the other two).
     """
     t = 0.5 - 0.5 * np.cos(np.linspace(0.0, np.pi, n_waypoints + 1))[1:, None]
     profile = None
