@@ -97,3 +97,19 @@ def test_training_run_writes_a_complete_run_directory_and_resumes(tmp_path):
 def test_unknown_env_id_is_rejected_by_the_cli(tmp_path):
     result = run_cli("--algo", "ppo", "--env", "IKBranch/Nope-v0", "--run-dir", str(tmp_path))
     assert result.returncode != 0 and "unknown env id" in result.stderr
+
+
+@pytest.mark.parametrize(("algo", "policy_name"),
+                         [("ppo", "BranchPolicy"), ("maskable_ppo", "MaskableBranchPolicy")])
+def test_branch_policy_from_a_config_name(algo, policy_name, tmp_path):
+    from train.training import train
+
+    run = RunConfig(
+        algo=algo, env_id="IKBranch/ToolTransfer-v0", seed=0, run_dir=tmp_path / algo,
+        timesteps=64, n_envs=1, progress_bar=False,
+        hyperparams={"policy": "BranchPolicy", "policy_kwargs": {}, "n_steps": 32, "batch_size": 16,
+                     "eval_freq": 10_000, "checkpoint_freq": 10_000},
+    )
+    model = train(run)
+    assert type(model.policy).__name__ == policy_name
+    assert (tmp_path / algo / "model.zip").exists()
