@@ -18,7 +18,6 @@ import argparse
 import os
 import time
 
-import mujoco
 import numpy as np
 
 from envs.kinematics import make_arm
@@ -79,19 +78,11 @@ def main() -> None:
 
 
 def _every_sample_until_contact(checker: CollisionChecker, q0, q1) -> np.ndarray:
-    model, data = checker.model, mujoco.MjData(checker.model)
-    verdicts = []
-    for a, b in zip(q0, q1, strict=True):
-        hit = False
-        for q in checker.path_samples(a, b):
-            data.qpos[: checker.dof] = q
-            mujoco.mj_kinematics(model, data)
-            mujoco.mj_collision(model, data)
-            if data.ncon:
-                hit = True
-                break
-        verdicts.append(hit)
-    return np.array(verdicts)
+    """The loop backend before conservative advancement: every grid sample in order."""
+    return np.array([
+        checker._n_contacts_loop(checker.path_samples(a, b), stop_at_first=True).any()
+        for a, b in zip(q0, q1, strict=True)
+    ])
 
 
 def _clutter_paths(arm, count: int, repeats: int) -> list[tuple[str, float]]:

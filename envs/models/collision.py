@@ -123,28 +123,8 @@ class PathResult:
 def lever_arms(model: mujoco.MjModel) -> np.ndarray:
     """Per-joint bound on point speed per unit joint speed, (njnt,): m/rad for hinges
     (largest distance from the axis to any downstream collision-geom point, over all
-    configurations), 1 for slides."""
-    collide = (model.geom_contype | model.geom_conaffinity) != 0
-    # reach[b]: largest distance from body b's origin to any collision-geom point of its
-    # subtree, over all joint values (children first: MuJoCo orders parents before children).
-    reach = np.zeros(model.nbody)
-    for g in np.flatnonzero(collide):
-        b = model.geom_bodyid[g]
-        reach[b] = max(reach[b], np.linalg.norm(model.geom_pos[g]) + model.geom_rbound[g])
-    for b in range(model.nbody - 1, 0, -1):
-        stroke = 0.0
-        for j in range(model.body_jntadr[b], model.body_jntadr[b] + model.body_jntnum[b]):
-            if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE:
-                stroke += np.max(np.abs(model.jnt_range[j])) if model.jnt_limited[j] else np.inf
-        parent = model.body_parentid[b]
-        reach[parent] = max(reach[parent], np.linalg.norm(model.body_pos[b]) + stroke + reach[b])
-    arms = np.ones(model.njnt)
-    for j in range(model.njnt):
-        if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE:
-            arms[j] = np.linalg.norm(model.jnt_pos[j]) + reach[model.jnt_bodyid[j]]
-        elif model.jnt_type[j] != mujoco.mjtJoint.mjJNT_SLIDE:
-            raise ValueError("path checks support hinge and slide joints only")
-    return arms
+    configurations), 1 for slides: the largest of :func:`body_lever_arms` over bodies."""
+    return body_lever_arms(model, model.njnt)[0].max(axis=0)
 
 
 def body_lever_arms(model: mujoco.MjModel, dof: int) -> tuple[np.ndarray, np.ndarray]:
@@ -152,6 +132,9 @@ def body_lever_arms(model: mujoco.MjModel, dof: int) -> tuple[np.ndarray, np.nda
     fast any collision-geom point of body b moves per unit speed of joint j (m/rad for a
     hinge, over all configurations; 1 for a slide; 0 unless j moves b), and ``moves``
     (nbody, dof) is 1 where joint j moves body b."""
+    hinge_or_slide = (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE)
+    if not np.isin(model.jnt_type, hinge_or_slide).all():
+        raise ValueError("path checks support hinge and slide joints only")
     collide = (model.geom_contype | model.geom_conaffinity) != 0
     own = np.zeros(model.nbody)  # body origin to its farthest collision-geom point
     for g in np.flatnonzero(collide):
@@ -246,18 +229,18 @@ class CollisionChecker:
         self._nthread = nthread
         self._chunk = int(chunk)
         self._batch: mujoco.batch.Batch | None = None
-        arms = lever_arms(self.model)
-        qpos_arm = np.zeros(self.model.nq)
-        qpos_arm[self.model.jnt_qposadr] = arms
-        self.lever = qpos_arm[: self.dof]
-        self._body_levers, self._body_moves = body_lever_arms(self.model, self.dof)
-        self._pairs = candidate_pairs(self.model)
-        self._pair_bodies = self.model.geom_bodyid[self._pairs]
-        plane = self.model.geom_type[self._pairs] == mujoco.mjtGeom.mjGEOM_PLANE
+        # Hinges and slides only: joint j is qpos[j].
+        levers, moves = body_lever_arms(self.model, self.model.njnt)
+        self.lever = levers.max(axis=0)[: self.dof]
+        self._body_levers, self._body_moves = levers[:, : self.dof], moves[:, : self.dof]
+        pairs = candidate_pairs(self.model)
+        # Pairs with a plane last (their bound is a half-space, the others' a sphere gap).
+        plane = self.model.geom_type[pairs] == mujoco.mjtGeom.mjGEOM_PLANE
+        order = np.argsort(plane[:, 0], kind="stable")
+        self._pairs, plane = pairs[order], plane[order]
         self._plane_pairs = plane[:, 0]
-        self._sphere_pairs = ~plane[:, 0]
-        rbound = np.where(plane, 0.0, self.model.geom_rbound[self._pairs])
-        self._radius_sum = rbound.sum(axis=1)
+        self._pair_bodies = self.model.geom_bodyid[self._pairs]
+        self._radius_sum = np.where(plane, 0.0, self.model.geom_rbound[self._pairs]).sum(axis=1)
 
     # ------------------------------------------------------------------ configurations
     def _full_qpos(self, q: np.ndarray) -> np.ndarray:
@@ -423,18 +406,12 @@ class CollisionChecker:
         moving = pair_rate > 1e-12
         if not moving.any():  # nothing moves relative to anything: one sample decides
             return -1 if self._n_contacts_loop(q0[None]).item() == 0 else 0
-        pair_rate = pair_rate[moving]
+        pair_rate, radius = pair_rate[moving], self._radius_sum[moving]
         first, second = self._pairs[moving, 0], self._pairs[moving, 1]
-        planes = self._plane_pairs[moving]
-        spheres = ~planes
-        sphere_first, sphere_second = first[spheres], second[spheres]
-        plane_first, plane_second = first[planes], second[planes]
-        radius = self._radius_sum[moving]
-        radius = np.concatenate([radius[spheres], radius[planes]])
-        order_rate = np.concatenate([pair_rate[spheres], pair_rate[planes]])
-        first_ids = np.concatenate([sphere_first, plane_first]).tolist()
-        second_ids = np.concatenate([sphere_second, plane_second]).tolist()
-        rates = order_rate.tolist()
+        spheres = int(np.count_nonzero(~self._plane_pairs[moving]))  # planes come last
+        sphere_first, sphere_second = first[:spheres], second[:spheres]
+        plane_first, plane_second = first[spheres:], second[spheres:]
+        first_ids, second_ids, rates = first.tolist(), second.tolist(), pair_rate.tolist()
         margin = self.resolution + DISTANCE_TOLERANCE
         model, data = self.model, self._data
         geom_distance = mujoco.mj_geomDistance
@@ -450,7 +427,7 @@ class CollisionChecker:
             normal = frame[plane_first][:, 2::3]  # each plane's z axis (row-major xmat)
             above = np.einsum("ij,ij->i", normal, centre[plane_second] - centre[plane_first])
             bound = np.concatenate([np.sqrt(np.einsum("ij,ij->i", gap, gap)), above]) - radius
-            steps = ((bound - margin) / order_rate).tolist()
+            steps = ((bound - margin) / pair_rate).tolist()
             # ... then exact distances, nearest-in-time first, only while a pair's bound
             # could still be the one that limits the step.
             best, hit = np.inf, False
