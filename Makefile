@@ -16,11 +16,16 @@ $(STAMP): pyproject.toml
 
 install: $(STAMP)
 
+# Compiled kernels (numba) land in its on-disk cache once, before parallel processes use them.
+WARM_UP := $(BIN)/python -c "import envs.models.compiled as c, agents.dp as d; c.warm_up(); d.warm_up()"
+
 demo: $(STAMP)
+	$(WARM_UP)
 	MUJOCO_GL=egl $(BIN)/python -m train.demo
 
 test: $(STAMP)
 	$(BIN)/ruff check .
+	$(WARM_UP)
 	MUJOCO_GL=egl $(BIN)/python -m pytest -q -n 2
 
 lint: $(STAMP)

@@ -115,12 +115,8 @@ class Baseline:
 
     def move_travel(self, waypoint: int) -> np.ndarray:
         """(K,) travel of moving from where the arm stands to each branch of ``waypoint``
-        (NaN for invalid ones); zero at a free start, where the first step costs no motion."""
-        env = self.env
-        targets = env.candidates[waypoint]
-        if waypoint == 0 and env.task.free_start:
-            return np.where(env.valid[0], 0.0, np.nan)
-        return env.cost.travel(env.q, targets)
+        (NaN for invalid ones; zero at a free start): the env's own prices."""
+        return self.env.ladder.travel_from(self.env.q, waypoint)
 
 
 def first_within(costs: np.ndarray, tolerance: float = 1e-9) -> int:

@@ -44,8 +44,8 @@ class PaperPairRule(Baseline):
         move = np.where(mask, self.move_travel(waypoint), np.inf)
         if waypoint + 1 >= env.task.n_waypoints:
             return first_within(move)
-        here, there = env.candidates[waypoint], env.candidates[waypoint + 1]
-        transfer = env.cost.travel(here[:, None, :], there[None, :, :])  # (K, K)
+        # (K, K): from every candidate of this waypoint to every one of the next.
+        transfer, _ = env.ladder.motion(env.candidates[waypoint], waypoint + 1)
         allowed = mask[:, None] & env.valid[waypoint + 1][None, :]
         total = np.where(allowed, move[:, None] + transfer, np.inf)
         # Row-major flat index: ties go to the lower a, then the lower b.

@@ -3,10 +3,6 @@
 from __future__ import annotations
 
 import numbers
-import os
-
-os.environ.setdefault("MUJOCO_GL", "egl")
-
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -16,13 +12,9 @@ from gymnasium import spaces
 from envs.costs import TransitionCost
 from envs.kinematics import ARM_NAMES, make_arm
 from envs.models import SCENES, CollisionChecker, build_arm_model
+from envs.moves import MovePricer, TaskMoves
+from envs.observations import ObservationBuilder
 from envs.tasks import TASKS, Task
-
-#: Path-collision results kept per env (the milling cell's finite pose set fits many times).
-PATH_CACHE_SIZE = 200_000
-#: Waypoint poses whose IK candidates (and their endpoint collisions) are kept per env: a
-#: task with a finite pose set (the milling cell's tool changes) solves each pose once.
-POSE_CACHE_SIZE = 50_000
 
 
 def _integer(value, name: str, minimum: int) -> int:
@@ -192,7 +184,7 @@ class IKBranchEnv(gym.Env):
         if width < 1 or height < 1:
             raise ValueError("width and height must be positive")
         self.lookahead = lookahead
-        self.cost = TransitionCost.for_arm(
+        cost = TransitionCost.for_arm(
             self.arm,
             travel_weight=travel_weight,
             time_weight=time_weight,
@@ -200,77 +192,92 @@ class IKBranchEnv(gym.Env):
             joint_weights=joint_weights,
             joint_speeds=joint_speeds,
         )
-        self.collision_penalty = float(collision_penalty)
-        self.invalid_penalty = float(invalid_penalty)
-        self.terminate_on_collision = bool(terminate_on_collision)
         self.render_mode = render_mode
         self.scene = scene
-
         scene_kwargs = {"seed": scene_seed} if scene == "random_clutter" else {}
         self.model = build_arm_model(self.arm, scene, **scene_kwargs)
-        self.checker = CollisionChecker(
-            self.model, dof=self.arm.dof, resolution=collision_resolution
+        checker = CollisionChecker(self.model, dof=self.arm.dof, resolution=collision_resolution)
+        #: Prices every move (shared with planners and baselines; owns the caches).
+        self.pricer = MovePricer(
+            self.arm, checker, cost,
+            collision_penalty=collision_penalty,
+            invalid_penalty=invalid_penalty,
+            terminate_on_collision=terminate_on_collision,
         )
-        self._path_cache: dict[bytes, bool] = {}
-        self._endpoint_cache: dict[bytes, bool] = {}
-        self._pose_cache: dict[bytes, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
-        self._renderer = None
-
-        lower, upper = self.arm.joint_limits[:, 0], self.arm.joint_limits[:, 1]
-        self._centre, self._half_range = (upper + lower) / 2, (upper - lower) / 2
-        self._travel_scale = float(self.cost.travel(lower, upper))
-        #: The dearest move any branch choice can cost (travel and time between opposite
-        #: joint limits); an episode that ends early pays it for every waypoint it skips.
-        self.max_transition_cost = float(
-            self.cost.travel_weight * self._travel_scale
-            + self.cost.time_weight * self.cost.time(lower, upper)
+        self._observations = ObservationBuilder(self.arm, lookahead, self.pricer.travel_scale)
+        self.observation_layout = self._observations.layout
+        self.observation_space = spaces.Box(
+            -1.0, 1.0, shape=(self._observations.size,), dtype=np.float32
         )
-        self.observation_layout = self._layout()
-        size = max(stop for _, stop in self.observation_layout.values())
-        self.observation_space = spaces.Box(-1.0, 1.0, shape=(size,), dtype=np.float32)
         self.action_space = spaces.Discrete(self.arm.n_branches)
-
-        self._q_slice = slice(*self.observation_layout["q"])
-        self._travel0 = slice(*self.observation_layout["slot0/travel"])
-        self._path0 = slice(*self.observation_layout["slot0/path_collision"])
-        self._all_branches = np.arange(self.arm.n_branches)
+        self._renderer = None
         self._moves_key: tuple | None = None
         self._moves_cache: dict[str, np.ndarray] = {}
 
         self.task: Task | None = None
-        self.candidates = self.valid = self.endpoint_collision = None
+        #: The current task's ladder (candidates and prices), None before ``reset``.
+        self.ladder: TaskMoves | None = None
         self.q = self.arm.home.copy()
         self.index = 0
+        self.episode_collided = self.episode_invalid = False
 
-    # --------------------------------------------------------------------------- layout
-    def _layout(self) -> dict[str, tuple[int, int]]:
-        dof, k = self.arm.dof, self.arm.n_branches
-        sizes = [("q", dof), ("progress", 1)]
-        for h in range(self.lookahead + 1):
-            sizes += [(f"slot{h}/present", 1), (f"slot{h}/candidates", k * dof),
-                      (f"slot{h}/valid", k), (f"slot{h}/endpoint_collision", k)]
-            sizes += [("slot0/travel", k), ("slot0/path_collision", k)] if h == 0 else [
-                (f"slot{h}/travel", k * k)]
-        layout, start = {}, 0
-        for name, size in sizes:
-            layout[name] = (start, start + size)
-            start += size
-        return layout
+    # ------------------------------------------------------------------ shared pieces
+    @property
+    def cost(self) -> TransitionCost:
+        return self.pricer.cost
+
+    @property
+    def checker(self) -> CollisionChecker:
+        return self.pricer.checker
+
+    @property
+    def collision_penalty(self) -> float:
+        return self.pricer.collision_penalty
+
+    @property
+    def invalid_penalty(self) -> float:
+        return self.pricer.invalid_penalty
+
+    @property
+    def terminate_on_collision(self) -> bool:
+        return self.pricer.terminate_on_collision
+
+    @property
+    def max_transition_cost(self) -> float:
+        return self.pricer.max_transition_cost
+
+    @property
+    def candidates(self) -> np.ndarray | None:
+        """(N, K, dof) IK candidates of the task's waypoints (NaN rows where invalid)."""
+        return None if self.ladder is None else self.ladder.candidates
+
+    @property
+    def valid(self) -> np.ndarray | None:
+        """(N, K) bool: the branch exists and lies inside the joint limits."""
+        return None if self.ladder is None else self.ladder.valid
+
+    @property
+    def endpoint_collision(self) -> np.ndarray | None:
+        """(N, K) bool: the candidate configuration itself touches something."""
+        return None if self.ladder is None else self.ladder.endpoint_collision
 
     # ---------------------------------------------------------------------------- API
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
-        self.task = self._generator(
-            self.arm, self.np_random, self.n_waypoints, self._is_free, self._is_path_free
+        pricer = self.pricer
+        task = self._generator(
+            self.arm, self.np_random, self.n_waypoints, pricer.is_free, pricer.is_path_free
         )
-        self.candidates, self.valid, self.endpoint_collision = self._solve(self.task.poses)
-        if not self.valid.any(axis=-1).all():
-            raise RuntimeError("task generator produced a waypoint without a valid branch")
-        self.q = np.array(self.task.start, dtype=np.float64)
-        self.index = 0
-        self.collided = self.invalid = False
-        self._prepare_observations()
+        self._start(task, pricer.task(task))
         return self._observation(), {"waypoint": 0}
+
+    def _start(self, task: Task, ladder: TaskMoves) -> None:
+        self.task, self.ladder = task, ladder
+        self.q = np.array(task.start, dtype=np.float64)
+        self.index = 0
+        self.episode_collided = self.episode_invalid = False
+        self._moves_key = None  # a new task: the cached moves belong to the old one
+        self._observations.prepare(ladder)
 
     def action_masks(self) -> np.ndarray:
         """(K,) bool: the branches of the next waypoint that exist and lie inside the limits."""
@@ -278,7 +285,7 @@ class IKBranchEnv(gym.Env):
             raise RuntimeError("call reset() before action_masks()")
         if self.index >= self.task.n_waypoints:
             return np.ones(self.arm.n_branches, dtype=bool)  # episode over: any action
-        return self.valid[self.index].copy()
+        return self.ladder.valid[self.index].copy()
 
     def step(self, action):
         if self.task is None:
@@ -293,14 +300,15 @@ class IKBranchEnv(gym.Env):
         reward = terms.pop("reward")
         terminated = terms.pop("terminal")
         if not terms["invalid"]:
-            self.q = self.candidates[waypoint, branch].copy()
+            self.q = self.ladder.candidates[waypoint, branch].copy()
         self.index = self.task.n_waypoints if terminated else waypoint + 1
-        self.collided |= terms["collision"]
-        self.invalid |= terms["invalid"]
+        self.episode_collided |= terms["collision"]
+        self.episode_invalid |= terms["invalid"]
         info = {"waypoint": waypoint, "branch": branch, **terms}
         if terminated:
             info["is_success"] = bool(
-                waypoint == self.task.n_waypoints - 1 and not self.collided and not self.invalid
+                waypoint == self.task.n_waypoints - 1
+                and not self.episode_collided and not self.episode_invalid
             )
         return self._observation(), reward, terminated, False, info
 
@@ -311,79 +319,23 @@ class IKBranchEnv(gym.Env):
         for waypoint 0, else the K candidates of ``waypoint − 1`` (rows of invalid ones are
         NaN); columns the K branches of ``waypoint``. Returns ``reward`` (R, K) and
         ``terminal`` (R, K) bool. Every path is collision-checked (and cached), so this is
-        what an oracle with full knowledge of the task plans over.
+        what an oracle with full knowledge of the task plans over (``self.ladder`` prices
+        moves lazily for planners that need fewer checks).
         """
         if self.task is None:
             raise RuntimeError("call reset() before edge_rewards()")
-        if not 0 <= waypoint < self.task.n_waypoints:
-            raise ValueError(f"waypoint must lie in [0, {self.task.n_waypoints})")
-        k = self.arm.n_branches
-        if waypoint == 0:
-            origins = np.asarray(self.task.start, dtype=np.float64)[None]
-            usable = np.ones(1, dtype=bool)
-        else:
-            origins, usable = self.candidates[waypoint - 1], self.valid[waypoint - 1]
-        reward = np.full((len(origins), k), np.nan)
-        terminal = np.ones((len(origins), k), dtype=bool)
-        for row in np.flatnonzero(usable):
-            terms = self._transition_terms(origins[row][None], waypoint, np.arange(k))
-            reward[row], terminal[row] = terms["reward"], terms["terminal"]
-        return reward, terminal
+        return self.ladder.edges(waypoint)
 
     def _moves(self) -> dict[str, np.ndarray]:
-        """``_transition_terms`` of every branch from where the arm stands into the next
-        waypoint: the observation's slot-0 travel and path collisions and what ``step``
-        pays, computed once per state (the same call ``edge_rewards`` makes per row)."""
+        """The terms (K,) of every move from where the arm stands into the next waypoint:
+        the observation's slot-0 travel and path collisions and what ``step`` pays,
+        computed once per state (all K paths in one checker call)."""
         key = (self.index, self.q.tobytes())
         if self._moves_key != key:
-            self._moves_cache = self._transition_terms(
-                self.q[None], self.index, self._all_branches
-            )
+            terms = self.ladder.terms(self.q[None], self.index)
+            self._moves_cache = {name: value[0] for name, value in terms.items()}
             self._moves_key = key
         return self._moves_cache
-
-    def _transition_terms(
-        self, origin: np.ndarray, waypoint: int, branches: np.ndarray
-    ) -> dict[str, np.ndarray]:
-        """Reward terms of moving from ``origin`` (1, dof) to ``branches`` of ``waypoint``.
-
-        The one place a transition is priced: ``step`` and ``edge_rewards`` both call it,
-        so an oracle's planned return is exactly what the env pays.
-        """
-        n = self.task.n_waypoints
-        invalid = ~self.valid[waypoint, branches]
-        targets = np.where(invalid[:, None], origin, self.candidates[waypoint, branches])
-        collision = np.zeros(len(branches), dtype=bool)
-        if waypoint == 0 and self.task.free_start:
-            travel = duration = np.zeros(len(branches))
-            collision[~invalid] = self.endpoint_collision[0, branches[~invalid]]
-        else:
-            travel, duration = self.cost.travel(origin, targets), self.cost.time(origin, targets)
-            if (~invalid).any():
-                collision[~invalid] = self._paths_collide(origin[0], targets[~invalid])
-        crashed = collision & self.terminate_on_collision
-        terminal = invalid | crashed | (waypoint == n - 1)
-        # Waypoints an early end leaves unvisited: an invalid branch never reaches its own.
-        skipped = np.where(invalid, n - waypoint, np.where(crashed, n - 1 - waypoint, 0))
-        reward_travel = -self.cost.travel_weight * travel
-        reward_time = -self.cost.time_weight * duration
-        reward_collision = np.where(collision, -self.collision_penalty, 0.0)
-        reward_invalid = np.where(invalid, -self.invalid_penalty, 0.0)
-        reward_unfinished = np.where(skipped > 0, -skipped * self.max_transition_cost, 0.0)
-        return {
-            "reward": reward_travel + reward_time + reward_collision + reward_invalid
-            + reward_unfinished,
-            "terminal": terminal,
-            "travel": travel,
-            "time": duration,
-            "collision": collision,
-            "invalid": invalid,
-            "reward_travel": reward_travel,
-            "reward_time": reward_time,
-            "reward_collision": reward_collision,
-            "reward_invalid": reward_invalid,
-            "reward_unfinished": reward_unfinished,
-        }
 
     def render(self):
         if self.render_mode != "rgb_array":
@@ -404,138 +356,28 @@ class IKBranchEnv(gym.Env):
             self._renderer.close()
             self._renderer = None
 
-    # ---------------------------------------------------------------- collision helpers
-    def _solve(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``candidates`` (N, K, dof), ``valid`` (N, K), ``endpoint_collision`` (N, K).
-
-        One batched IK call and one batched endpoint check for the poses not seen before
-        (results are cached per pose: IK is row-wise exact, so a cached row is the row a
-        fresh call would give).
-        """
-        poses = np.ascontiguousarray(poses, dtype=np.float64)
-        cache = self._pose_cache
-        keys = [pose.tobytes() for pose in poses]
-        rows = [cache.get(key) for key in keys]
-        missing = list({keys[i]: i for i, row in enumerate(rows) if row is None}.values())
-        if missing:
-            candidates, valid = self.arm.ik(poses[missing])
-            endpoint = np.zeros_like(valid)
-            endpoint[valid] = self._endpoints_collide(candidates[valid])
-            new = {
-                keys[i]: (candidates[row], valid[row], endpoint[row])
-                for row, i in enumerate(missing)
-            }
-            if len(cache) + len(new) > POSE_CACHE_SIZE:
-                cache.clear()
-            cache.update(new)
-            rows = [new[key] if row is None else row for key, row in zip(keys, rows, strict=True)]
-        return (
-            np.array([row[0] for row in rows]),
-            np.array([row[1] for row in rows]),
-            np.array([row[2] for row in rows]),
-        )
-
-    def _is_free(self, q: np.ndarray) -> np.ndarray:
-        return ~self._endpoints_collide(q)
-
-    def _is_path_free(self, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
-        """(M,) True where the path q0[i] → q1[i] is free (through the path cache)."""
-        return np.array(
-            [not self._paths_collide(a, b[None])[0] for a, b in zip(q0, q1, strict=True)]
-        )
-
-    def _endpoints_collide(self, q: np.ndarray) -> np.ndarray:
-        return self._cached(self._endpoint_cache, q, self.checker.collides)
-
-    def _paths_collide(self, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
-        """(M,) path collisions from q0 (dof,) to each of q1 (M, dof), cached."""
-        prefix = q0.tobytes()
-        return self._cached(
-            self._path_cache, q1, lambda rows: self.checker.check_paths(q0, rows)[0], prefix
-        )
-
-    @staticmethod
-    def _cached(cache: dict, rows: np.ndarray, compute, prefix: bytes = b"") -> np.ndarray:
-        rows = np.ascontiguousarray(rows, dtype=np.float64)
-        keys = [prefix + row.tobytes() for row in rows]
-        found = [cache.get(key) for key in keys]
-        missing = [i for i, value in enumerate(found) if value is None]
-        if missing:
-            values = compute(rows[missing])
-            # Clearing a full cache must not lose this call's hits: fill from ``found``.
-            if len(cache) + len(missing) > PATH_CACHE_SIZE:
-                cache.clear()
-            for i, value in zip(missing, values, strict=True):
-                found[i] = cache[keys[i]] = bool(value)
-        return np.array(found, dtype=bool)
-
     # ------------------------------------------------------------------- observation
-    def _normalise(self, q: np.ndarray) -> np.ndarray:
-        return (q - self._centre) / self._half_range
-
-    def _prepare_observations(self) -> None:
-        """Everything of the observation a task fixes, once per (new) task.
-
-        ``self._templates[i]`` is the observation at ``index == i`` (i = 0 … N) but for
-        the parts that depend on where the arm stands: ``q`` and slot 0's ``travel`` and
-        ``path_collision``, which ``_observation`` fills in.
-        """
-        n, k, dof = self.task.n_waypoints, self.arm.n_branches, self.arm.dof
-        valid = self.valid
-        self._moves_key = None  # a new task: the cached moves belong to the old one
-        # Per waypoint: present, candidates (invalid ones at the centre: 0), valid, endpoint.
-        candidates = np.where(valid[..., None], self.candidates, self._centre)
-        common = np.concatenate(
-            [np.ones((n, 1)), self._normalise(candidates).reshape(n, k * dof), valid,
-             self.endpoint_collision], axis=1,
-        )
-        width = common.shape[1]
-        templates = np.zeros((n + 1, self.observation_space.shape[0]))
-        templates[:, slice(*self.observation_layout["progress"])] = (
-            np.arange(n + 1)[:, None] / n
-        )
-        if self.lookahead and n > 1:
-            # travel[i - 1]: (K, K) from every candidate of waypoint i − 1 to every one of i.
-            both = valid[:-1, :, None] & valid[1:, None, :]
-            travel = np.ones((n - 1, k, k))
-            travel[both] = self.cost.travel(
-                self.candidates[:-1, :, None, :], self.candidates[1:, None, :, :]
-            )[both] / self._travel_scale
-            travel = travel.reshape(n - 1, k * k)
-        for h in range(min(self.lookahead, n - 1) + 1):
-            start = self.observation_layout[f"slot{h}/present"][0]
-            rows = n - h  # indices 0 … n − h − 1 see waypoint index + h inside the task
-            templates[:rows, start : start + width] = common[h:]
-            if h:
-                templates[:rows, start + width : start + width + k * k] = travel[h - 1 :]
-        # Values sit inside [−1, 1] by construction; the clip only absorbs the 1e-9 slack
-        # with which a branch may lie on a joint limit.
-        self._templates = np.clip(templates, -1.0, 1.0).astype(np.float32)
-
     def _observation(self) -> np.ndarray:
-        obs = self._templates[self.index].copy()
-        obs[self._q_slice] = np.clip((self.q - self._centre) / self._half_range, -1.0, 1.0)
-        i = self.index
-        if i >= self.task.n_waypoints:
-            return obs
-        moves = self._moves()  # invalid branches: travel 0, collision False
-        travel = moves["travel"] / self._travel_scale
-        obs[self._travel0] = np.where(self.valid[i], np.minimum(travel, 1.0), 1.0)
-        obs[self._path0] = moves["collision"]
-        return obs
+        if self.index >= self.task.n_waypoints:
+            return self._observations.observe(self.index, self.q, None, None)
+        return self._observations.observe(
+            self.index, self.q, self.ladder.valid[self.index], self._moves()
+        )
 
     # ---------------------------------------------------------------------- pickling
     def __getstate__(self) -> dict:
         # The task's IK solutions travel with it: the copy continues bit for bit, and
         # does not redo the IK and endpoint checks.
+        ladder = self.ladder
         return {
             "kwargs": self._kwargs,
             "rng": None if self._np_random is None else self._np_random.bit_generator.state,
             "task": self.task,
-            "solutions": (self.candidates, self.valid, self.endpoint_collision),
+            "solutions": None if ladder is None else (
+                ladder.candidates, ladder.valid, ladder.endpoint_collision),
             "q": self.q,
             "index": self.index,
-            "flags": (getattr(self, "collided", False), getattr(self, "invalid", False)),
+            "flags": (self.episode_collided, self.episode_invalid),
         }
 
     def __setstate__(self, state: dict) -> None:
@@ -544,8 +386,6 @@ class IKBranchEnv(gym.Env):
             self._np_random = np.random.Generator(np.random.PCG64())
             self._np_random.bit_generator.state = state["rng"]
         if state["task"] is not None:
-            self.task = state["task"]
-            self.candidates, self.valid, self.endpoint_collision = state["solutions"]
-            self._prepare_observations()
+            self._start(state["task"], TaskMoves(self.pricer, state["task"], *state["solutions"]))
         self.q, self.index = np.array(state["q"], dtype=np.float64), state["index"]
-        self.collided, self.invalid = state["flags"]
+        self.episode_collided, self.episode_invalid = state["flags"]

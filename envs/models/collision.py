@@ -75,18 +75,19 @@ from __future__ import annotations
 
 import copy
 import itertools
-import os
 from dataclasses import dataclass
 
 import mujoco
 import mujoco.batch
 import numpy as np
 
+from .compiled import DISTANCE_TOLERANCE, CompiledFilter, path_steps
+
 #: Default Cartesian resolution δ (m): largest displacement of any geom point between
 #: samples, and the clearance below which two geoms count as colliding.
 DEFAULT_RESOLUTION = 0.01
-#: Reported distances are trusted only up to this (m) when skipping samples.
-DISTANCE_TOLERANCE = 1e-6
+#: ``CollisionChecker`` backends (module docstring); "auto" is "compiled".
+BACKENDS = ("auto", "compiled", "batch", "loop")
 
 
 @dataclass(frozen=True)
@@ -220,11 +221,10 @@ class CollisionChecker:
         self.model.geom_gap[collide] = 0.0
         self.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_MIDPHASE
         self._data = mujoco.MjData(self.model)
-        if backend not in ("auto", "batch", "loop"):
-            raise ValueError("backend must be 'auto', 'batch' or 'loop'")
+        if backend not in BACKENDS:
+            raise ValueError(f"backend must be one of {', '.join(map(repr, BACKENDS))}")
         if backend == "auto":
-            threads = nthread if nthread > 0 else (os.cpu_count() or 1)
-            backend = "batch" if threads >= 4 else "loop"
+            backend = "compiled"
         self.backend = backend
         self._nthread = nthread
         self._chunk = int(chunk)
@@ -241,6 +241,9 @@ class CollisionChecker:
         self._plane_pairs = plane[:, 0]
         self._pair_bodies = self.model.geom_bodyid[self._pairs]
         self._radius_sum = np.where(plane, 0.0, self.model.geom_rbound[self._pairs]).sum(axis=1)
+        self._filter = None
+        if backend == "compiled":
+            self._filter = CompiledFilter(self.model, self._data, self.dof, self._pairs)
 
     # ------------------------------------------------------------------ configurations
     def _full_qpos(self, q: np.ndarray) -> np.ndarray:
@@ -266,6 +269,8 @@ class CollisionChecker:
         flat = q.reshape(-1, self.dof)
         if self.backend == "loop":
             return self._n_contacts_loop(flat).reshape(q.shape[:-1])
+        if self.backend == "compiled":
+            return self._filter.contacts(np.ascontiguousarray(flat)).reshape(q.shape[:-1])
         out = np.empty(len(flat), dtype=np.int64)
         batch = self._ensure_batch()
         for start in range(0, len(flat), self._chunk):
@@ -321,43 +326,91 @@ class CollisionChecker:
 
     # ------------------------------------------------------------------------- paths
     def displacement_bound(self, q0, q1) -> np.ndarray:
-        """(…,) D: largest distance (m) any geom point travels along the linear path."""
+        """(…,) D = Σ_j R_j |Δq_j|: largest distance (m) any geom point travels along the
+        linear path (summed in joint order, as :meth:`n_steps` does)."""
         delta = np.abs(np.asarray(q1, dtype=np.float64) - np.asarray(q0, dtype=np.float64))
-        return delta @ self.lever
+        return (delta * self.lever).sum(axis=-1)
 
     def n_steps(self, q0, q1) -> np.ndarray:
-        """(…,) number of intervals n = ⌈D/δ⌉ (≥ 1) for the path q0 → q1."""
-        bound = self.displacement_bound(q0, q1)
-        return np.maximum(np.ceil(bound / self.resolution - 1e-12), 1).astype(np.int64)
+        """(…,) number of intervals n = ⌈D/δ⌉ (≥ 1) for the path q0 → q1: one definition
+        (``compiled.path_steps``) for every backend and batch shape."""
+        q0, q1 = self._ends(q0, q1)
+        shape = np.broadcast_shapes(q0.shape, q1.shape)[:-1]
+        start, end = np.broadcast_arrays(q0, q1)
+        start = np.ascontiguousarray(start.reshape(-1, self.dof))
+        end = np.ascontiguousarray(end.reshape(-1, self.dof))
+        out = np.empty(len(end), dtype=np.int64)
+        path_steps(start, end, self.lever, self.resolution, out)
+        return out.reshape(shape)
 
     def path_samples(self, q0, q1) -> np.ndarray:
-        """(n + 1, dof) samples of the path q0 → q1 (both ends included)."""
-        q0, q1 = np.asarray(q0, dtype=np.float64), np.asarray(q1, dtype=np.float64)
-        t = np.linspace(0.0, 1.0, int(self.n_steps(q0, q1)) + 1)
-        return q0 + t[:, None] * (q1 - q0)
+        """(n + 1, dof) samples q0 + (i/n)(q1 − q0) of the path q0 → q1 (both ends
+        included), the grid every backend checks."""
+        q0, q1 = self._ends(q0, q1)
+        n = int(self.n_steps(q0, q1))
+        return q0 + (np.arange(n + 1) / n)[:, None] * (q1 - q0)
 
     def check_path(self, q0, q1) -> PathResult:
         """Check the linear path q0 → q1 (each (dof,))."""
-        collides, first, contacts, samples = self._check_paths_flat(
-            np.asarray(q0, dtype=np.float64)[None], np.asarray(q1, dtype=np.float64)[None], True
-        )
+        q0, q1 = self._ends(q0, q1)
+        collides, first, contacts, samples = self._check_paths_flat(q0[None], q1[None], True)
         return PathResult(bool(collides[0]), float(first[0]), contacts[0], int(samples[0]))
 
     def check_paths(self, q0, q1) -> tuple[np.ndarray, np.ndarray]:
         """Check many paths at once, ``q0`` and ``q1`` broadcast to (…, dof).
 
-        Returns ``collides`` (…,) bool and ``first_fraction`` (…,) (NaN where free). All
-        samples of all paths go through the batch together, e.g. (K candidates × N
-        waypoints) transfers in one call.
+        Returns ``collides`` (…,) bool and ``first_fraction`` (…,) (NaN where free): the
+        first colliding grid sample i/n of each path. Every path goes through one call,
+        e.g. (K candidates × N waypoints) transfers.
         """
-        q0, q1 = np.broadcast_arrays(
-            np.asarray(q0, dtype=np.float64), np.asarray(q1, dtype=np.float64)
-        )
+        q0, q1 = np.broadcast_arrays(*self._ends(q0, q1))
         shape = q0.shape[:-1]
         collides, first, _, _ = self._check_paths_flat(
             q0.reshape(-1, self.dof), q1.reshape(-1, self.dof), False
         )
         return collides.reshape(shape), first.reshape(shape)
+
+    def paths_collide(self, q0, q1) -> np.ndarray:
+        """(…,) bool: the verdicts of :meth:`check_paths` for ``q0``, ``q1`` broadcast to
+        (…, dof), without the first colliding sample. The compiled backend stops a path at
+        the first contact it finds, wherever on the path: the same verdict for less work.
+        A single start (dof,) for many ends (M, dof) is the cheapest call (a step's K
+        moves)."""
+        q0, q1 = self._ends(q0, q1)
+        if q0.ndim == 1 and q1.ndim == 2:
+            return self.rows_paths_collide(q0[None], np.ascontiguousarray(q1))
+        start, end = np.broadcast_arrays(q0, q1)
+        shape = start.shape[:-1]
+        start = np.ascontiguousarray(start.reshape(-1, self.dof))
+        end = np.ascontiguousarray(end.reshape(-1, self.dof))
+        return self.rows_paths_collide(start, end).reshape(shape)
+
+    def rows_paths_collide(self, start: np.ndarray, end: np.ndarray) -> np.ndarray:
+        """:meth:`paths_collide` for C-contiguous float64 rows already checked finite:
+        ``start`` (M or 1, dof), ``end`` (M, dof). For callers that validated their input
+        (``envs.moves``): no checks, one kernel call."""
+        if self.backend != "compiled":
+            start = np.broadcast_to(start, end.shape)
+            return self._check_paths_flat(start, end, False)[0]
+        steps = np.empty(len(end), dtype=np.int64)
+        path_steps(start, end, self.lever, self.resolution, steps)
+        return self._filter.paths(start, end, steps, False) >= 0
+
+    def rows_collide(self, q: np.ndarray) -> np.ndarray:
+        """:meth:`collides` for C-contiguous float64 rows (M, dof) already checked finite."""
+        if self.backend == "compiled":
+            return self._filter.contacts(q) > 0
+        return self.collides(q)
+
+    def _ends(self, q0, q1) -> tuple[np.ndarray, np.ndarray]:
+        """Path ends as float arrays, ``ValueError`` for a wrong last axis or NaN/inf."""
+        q0, q1 = np.asarray(q0, dtype=np.float64), np.asarray(q1, dtype=np.float64)
+        for q in (q0, q1):
+            if q.shape[-1:] != (self.dof,):
+                raise ValueError(f"path ends must have shape (..., {self.dof}), got {q.shape}")
+        if not (np.isfinite(q0).all() and np.isfinite(q1).all()):
+            raise ValueError("path ends contain NaN or inf")
+        return q0, q1
 
     def _check_paths_flat(self, q0: np.ndarray, q1: np.ndarray, want_contacts: bool):
         steps = self.n_steps(q0, q1)
@@ -365,6 +418,16 @@ class CollisionChecker:
         collides = np.zeros(len(q0), dtype=bool)
         first = np.full(len(q0), np.nan)
         contacts: list[tuple[Contact, ...]] = [() for _ in range(len(q0))]
+        if self.backend == "compiled":
+            index = self._filter.paths(np.ascontiguousarray(q0), np.ascontiguousarray(q1),
+                                       steps, True)
+            for path in np.flatnonzero(index >= 0):
+                collides[path] = True
+                first[path] = index[path] / steps[path]
+                if want_contacts:
+                    sample = q0[path] + first[path] * (q1[path] - q0[path])
+                    contacts[path] = self.contacts(sample)
+            return collides, first, contacts, counts
         if self.backend == "loop":
             for path, n in enumerate(steps.tolist()):
                 index = self._first_hit_advancing(q0[path], q1[path], n)

@@ -40,8 +40,16 @@ def random_reachable(
     """
     chain = list(sample_free_configurations(arm, rng, n_waypoints + 1, is_free))
     index, tries, draws = 1, 0, 0
+    verdicts: dict[int, bool] = {}  # index i -> the path chain[i - 1] -> chain[i] is free
     while index <= n_waypoints:
-        if is_path_free(chain[index - 1][None], chain[index][None])[0]:
+        if index not in verdicts:
+            # Every unchecked link from here on in one call; the walk below uses them in
+            # order, exactly as checking one link at a time would.
+            links = [i for i in range(index, n_waypoints + 1) if i not in verdicts]
+            free = is_path_free(np.array([chain[i - 1] for i in links]),
+                                np.array([chain[i] for i in links]))
+            verdicts.update(zip(links, free.tolist(), strict=True))
+        if verdicts[index]:
             index, tries = index + 1, 0
             continue
         draws += 1
@@ -57,6 +65,9 @@ def random_reachable(
                 index -= 1  # redraw the configuration we came from (checked again below)
             else:
                 chain[0] = sample_free_configurations(arm, rng, 1, is_free)[0]
+                verdicts.pop(1, None)
                 continue
         chain[index] = sample_free_configurations(arm, rng, 1, is_free)[0]
+        verdicts.pop(index, None)
+        verdicts.pop(index + 1, None)
     return Task(start=chain[0], poses=arm.fk(np.array(chain[1:])))

@@ -147,4 +147,4 @@ def test_oracle_finishes_every_random_waypoint_task_without_a_collision(env_id):
     # Without the path check, seeds 0-7 include infeasible tasks for three of these ids.
     for seed in range(8):
         _, _ = play(env, oracle, seed)
-        assert not env.unwrapped.collided and not env.unwrapped.invalid, seed
+        assert not env.unwrapped.episode_collided and not env.unwrapped.episode_invalid, seed

@@ -1,0 +1,1012 @@
+"""The compiled collision filter: bounds that prove samples free, MuJoCo for the rest.
+
+:class:`~envs.models.collision.CollisionChecker`'s ``"compiled"`` backend. It answers the
+same questions as the exact backends (does configuration q touch anything closer than δ;
+which grid sample of a linear path is the first to), with the same answers, but decides
+most samples without MuJoCo:
+
+1. **Geometry as flat arrays, read from the compiled model** (:class:`CompiledScene`): the
+   kinematic tree (hinge and slide joints, body offsets), every collision geom that
+   ``mj_collision`` may test (:func:`~envs.models.collision.candidate_pairs`) as a
+   *container* shape that holds it (spheres, capsules and boxes as themselves, a convex
+   mesh as its bounding box, a cylinder as both the capsule and the box around it, an
+   ellipsoid as its box, a plane as its half-space), each inside a bounding sphere, and per
+   pair the lever arms that bound how fast its distance can change (per geom, over all
+   configurations; ``docs/models.md``). No per-arm code: every model ``envs.models``
+   builds gets it.
+2. **Lower bounds in the kernel**: forward kinematics of the tree, then per candidate
+   pair first the bounding spheres' gap and, only where that could matter, an exact
+   distance between the containers (sphere/capsule/box/half-space pairs in closed form,
+   box–box by separating axes, which never overestimates). A container holds its geom,
+   so these never exceed the true distance.
+3. **Proof or hand-over**: a sample at which every pair is provably farther than its
+   contact margin (δ, plus ``DISTANCE_TOLERANCE``) is free, exactly as ``mj_collision``
+   would find it. Any other sample goes to ``mj_kinematics`` + ``mj_collision`` on the
+   checker's ``MjData``, called from the kernel (:mod:`envs.models.native`): the exact
+   check of the Python backends, so every verdict and every first colliding sample is
+   theirs.
+4. **Paths, coarse to fine**: a path's grid samples (t_i = i/n, as in the module docstring
+   of :mod:`~envs.models.collision`) are visited in raked order (the middle of every
+   unresolved interval, breadth first), and a free sample's bounds prove its neighbours
+   on both sides free (conservative advancement: a pair at distance d approaching at rate
+   ≤ L stays farther than the margin for |t − t_i| < (d − margin)/L). A verdict-only call
+   stops at the first contact found; a first-sample call keeps resolving the samples
+   before it.
+
+All kernels are ``numba.njit(cache=True)``: compiled once per machine into
+``__pycache__`` (``warm_up`` does it ahead), loaded in well under a second afterwards.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from numba import njit
+
+from . import native
+
+#: Reported distances are trusted only up to this (m): a pair counts as proven free only
+#: when its lower bound exceeds the contact margin by this much.
+DISTANCE_TOLERANCE = 1e-6
+
+#: Container shapes (codes shared with the kernels).
+SPHERE, CAPSULE, BOX, CYLINDER, PLANE, UNBOUNDED = 0, 1, 2, 3, 4, 5
+#: Joint type codes, MuJoCo's own.
+_SLIDE, _HINGE = int(mujoco.mjtJoint.mjJNT_SLIDE), int(mujoco.mjtJoint.mjJNT_HINGE)
+
+
+@dataclass(frozen=True, eq=False)
+class CompiledScene:
+    """Everything the kernels read, as flat arrays (see the module docstring).
+
+    Tree: ``body_*`` (nbody), ``jnt_*`` (njnt), ``qpos0``. Geoms ("slots": only those of
+    candidate pairs): body, shape frame in the body frame (for static slots: in the world,
+    fixed), container type, size, bounding radius about the shape centre. Pairs: the two
+    slots (a static one always second), the contact margin, and per joint the lever arm
+    that bounds the rate of change of the pair's distance (m per rad, 1 for a slide).
+    """
+
+    body_parent: np.ndarray
+    body_pos: np.ndarray
+    body_rot: np.ndarray
+    body_jntadr: np.ndarray
+    body_jntnum: np.ndarray
+    body_flags: np.ndarray
+    jnt_type: np.ndarray
+    jnt_qposadr: np.ndarray
+    jnt_pos: np.ndarray
+    jnt_axis: np.ndarray
+    jnt_axis_code: np.ndarray
+    qpos0: np.ndarray
+    body_xpos: np.ndarray
+    body_xmat: np.ndarray
+    slot_geom: np.ndarray
+    slot_body: np.ndarray
+    slot_static: np.ndarray
+    slot_pos: np.ndarray
+    slot_rot: np.ndarray
+    slot_type: np.ndarray
+    slot_size: np.ndarray
+    slot_radius: np.ndarray
+    pair_a: np.ndarray
+    pair_b: np.ndarray
+    pair_margin: np.ndarray
+    pair_lever: np.ndarray
+    pair_reach: np.ndarray
+
+    @property
+    def tree(self) -> tuple:
+        """The kinematic tree as the kernels take it (static body frames last)."""
+        return (self.body_parent, self.body_pos, self.body_rot, self.body_jntadr,
+                self.body_jntnum, self.body_flags, self.jnt_type, self.jnt_qposadr,
+                self.jnt_pos, self.jnt_axis, self.jnt_axis_code, self.qpos0,
+                self.body_xpos, self.body_xmat)
+
+    @property
+    def geometry(self) -> tuple:
+        """Slots and pairs as the kernels take them."""
+        return (self.slot_body, self.slot_static, self.slot_pos, self.slot_rot,
+                self.slot_type, self.slot_size, self.slot_radius, self.pair_a, self.pair_b,
+                self.pair_margin, self.pair_lever, self.pair_reach)
+
+
+# ------------------------------------------------------------------------------ geometry
+def container(model: mujoco.MjModel, geom: int) -> tuple[int, np.ndarray, np.ndarray, float]:
+    """The container of ``geom``: (type, size (3,), centre offset in the geom frame (3,),
+    bounding radius about that centre). The container holds every point of the geom as
+    MuJoCo collides it (a mesh as its convex hull)."""
+    kind = int(model.geom_type[geom])
+    size = np.array(model.geom_size[geom], dtype=np.float64)
+    offset = np.zeros(3)
+    geom_types = mujoco.mjtGeom
+    if kind == geom_types.mjGEOM_SPHERE:
+        return SPHERE, size, offset, float(size[0])
+    if kind == geom_types.mjGEOM_CAPSULE:
+        return CAPSULE, size, offset, float(size[0] + size[1])
+    if kind == geom_types.mjGEOM_BOX:
+        return BOX, size, offset, float(np.linalg.norm(size))
+    if kind == geom_types.mjGEOM_CYLINDER:
+        return CYLINDER, size, offset, float(np.hypot(size[0], size[1]))
+    if kind == geom_types.mjGEOM_ELLIPSOID:
+        return BOX, size, offset, float(size.max())
+    if kind == geom_types.mjGEOM_MESH:
+        # geom_aabb: the (centre, half-size) box of the mesh's vertices in the geom frame,
+        # so it holds their convex hull, which is what MuJoCo collides.
+        aabb = np.array(model.geom_aabb[geom], dtype=np.float64)
+        half = aabb[3:] * (1.0 + 1e-12) + 1e-12
+        return BOX, half, aabb[:3].copy(), float(np.linalg.norm(half))
+    if kind == geom_types.mjGEOM_PLANE:
+        return PLANE, size, offset, math.inf
+    return UNBOUNDED, size, offset, math.inf
+
+
+def _quat_to_mat(quat) -> np.ndarray:
+    mat = np.zeros(9)
+    mujoco.mju_quat2Mat(mat, np.asarray(quat, dtype=np.float64))
+    return mat.reshape(3, 3)
+
+
+def _ancestors(model: mujoco.MjModel, body: int) -> list[int]:
+    chain = []
+    while body != 0:
+        chain.append(body)
+        body = int(model.body_parentid[body])
+    return chain
+
+
+def _body_frame(model: mujoco.MjModel, body: int) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation and offset of ``body``'s frame in its parent's (before its joints act)."""
+    return _quat_to_mat(model.body_quat[body]), np.array(model.body_pos[body], dtype=float)
+
+
+def _levers(model: mujoco.MjModel, body: int, centre: np.ndarray, radius: float,
+            dof: int) -> np.ndarray:
+    """(njnt,) bound on the speed of any point within ``radius`` of ``centre`` (in
+    ``body``'s frame) per unit speed of each joint, over all configurations: 1 for a slide,
+    0 for joints that do not move the body, and for a hinge the largest distance of such a
+    point from the hinge's axis. That distance is the part of the chain held rigidly in
+    the hinge's own body (up to the next body with joints), measured perpendicular to the
+    axis, plus every length after it (body offsets, slide strokes, anchors off a body's
+    origin, the point's radius): the triangle inequality. Joints from ``dof`` on never
+    move in checks (they stay at ``qpos0``)."""
+    chain = list(reversed(_ancestors(model, body)))  # root-side first, ``body`` last
+    levers = np.zeros(model.njnt)
+    for index, owner in enumerate(chain):
+        first, count = int(model.body_jntadr[owner]), int(model.body_jntnum[owner])
+        for j in range(first, first + count):
+            if model.jnt_type[j] == _SLIDE:
+                levers[j] = 1.0
+                continue
+            # In the owner's frame: the fixed part reaches from the anchor to the origin
+            # of the next jointed body (or to the point itself), the rest is any length.
+            rotation, offset = np.eye(3), np.zeros(3)
+            rest = 0.0 if j == first + count - 1 else math.inf  # several joints: no bound
+            tip = None
+            for later in chain[index + 1 :]:
+                turn, shift = _body_frame(model, later)
+                offset, rotation = offset + rotation @ shift, rotation @ turn
+                if model.body_jntnum[later]:
+                    tip = offset
+                    rest += _reach_after(model, chain[chain.index(later) :], centre, radius,
+                                         dof)
+                    break
+            if tip is None:
+                tip = offset + rotation @ centre
+                rest += radius
+            axis = model.jnt_axis[j] / np.linalg.norm(model.jnt_axis[j])
+            arm_vector = tip - model.jnt_pos[j]
+            perpendicular = arm_vector - axis * (axis @ arm_vector)
+            levers[j] = float(np.linalg.norm(perpendicular)) + rest
+    return levers
+
+
+def _reach_after(model: mujoco.MjModel, bodies: list[int], centre: np.ndarray,
+                 radius: float, dof: int) -> float:
+    """Bound on the distance of any point within ``radius`` of ``centre`` (in the last
+    body's frame) from the origin of ``bodies[0]`` (before its joints act), over all
+    configurations of the joints of ``bodies``."""
+    reach = float(np.linalg.norm(centre)) + radius
+    for b in bodies:
+        if b != bodies[0]:
+            reach += float(np.linalg.norm(model.body_pos[b]))
+        first, count = int(model.body_jntadr[b]), int(model.body_jntnum[b])
+        for j in range(first, first + count):
+            if j >= dof:
+                continue
+            if model.jnt_type[j] == _SLIDE:
+                if not model.jnt_limited[j]:
+                    return math.inf
+                adr = model.jnt_qposadr[j]
+                reach += float(np.max(np.abs(model.jnt_range[j] - model.qpos0[adr])))
+            else:
+                reach += 2.0 * float(np.linalg.norm(model.jnt_pos[j]))  # an off-origin hinge
+    return reach
+
+
+def _moved_by(model: mujoco.MjModel, body: int) -> np.ndarray:
+    moved = np.zeros(model.njnt, dtype=bool)
+    for b in _ancestors(model, body):
+        first, count = int(model.body_jntadr[b]), int(model.body_jntnum[b])
+        moved[first : first + count] = True
+    return moved
+
+
+def compile_scene(model: mujoco.MjModel, dof: int, pairs: np.ndarray) -> CompiledScene:
+    """The flat arrays of ``model`` (margins as set on it) for the geom ``pairs`` (P, 2)
+    that ``mj_collision`` may test. ``ValueError`` for what the filter cannot bound
+    (joints other than hinges and slides, explicit contact pairs, mocap bodies, margin
+    overrides)."""
+    if not np.isin(model.jnt_type, (_SLIDE, _HINGE)).all() or model.nq != model.njnt:
+        raise ValueError("the compiled filter supports hinge and slide joints only")
+    if model.npair or model.nmocap:
+        raise ValueError("the compiled filter supports no explicit contact pairs or mocap bodies")
+    if model.opt.enableflags & mujoco.mjtEnableBit.mjENBL_OVERRIDE:
+        raise ValueError("the compiled filter needs per-geom margins (no contact override)")
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    static_body = model.body_weldid == 0
+
+    geoms = np.unique(pairs) if len(pairs) else np.zeros(0, dtype=np.int64)
+    slot_of = {int(g): s for s, g in enumerate(geoms)}
+    n_slots = len(geoms)
+    slot_body = model.geom_bodyid[geoms].astype(np.int64)
+    slot_static = static_body[slot_body]
+    slot_pos, slot_rot = np.zeros((n_slots, 3)), np.zeros((n_slots, 3, 3))
+    slot_type = np.zeros(n_slots, dtype=np.int64)
+    slot_size, slot_radius = np.zeros((n_slots, 3)), np.zeros(n_slots)
+    levers, moved = np.zeros((n_slots, model.njnt)), np.zeros((n_slots, model.njnt), dtype=bool)
+    for s, g in enumerate(geoms):
+        kind, size, offset, radius = container(model, int(g))
+        slot_type[s], slot_size[s], slot_radius[s] = kind, size, radius
+        if slot_static[s]:  # fixed in the world: its frame once, from MuJoCo
+            rot = data.geom_xmat[g].reshape(3, 3).copy()
+            slot_rot[s], slot_pos[s] = rot, data.geom_xpos[g] + rot @ offset
+            continue
+        if kind in (PLANE, UNBOUNDED):
+            slot_type[s] = UNBOUNDED  # a moving plane: left to MuJoCo at every sample
+        rot = _quat_to_mat(model.geom_quat[g])
+        slot_rot[s], slot_pos[s] = rot, model.geom_pos[g] + rot @ offset
+        levers[s] = _levers(model, int(slot_body[s]), slot_pos[s],
+                            radius if np.isfinite(radius) else 0.0, dof)
+        moved[s] = _moved_by(model, int(slot_body[s]))
+
+    pair_a, pair_b = np.zeros(len(pairs), dtype=np.int64), np.zeros(len(pairs), dtype=np.int64)
+    pair_lever = np.zeros((len(pairs), model.njnt))
+    for k, (g1, g2) in enumerate(pairs.tolist()):
+        a, b = slot_of[int(g1)], slot_of[int(g2)]
+        if slot_static[a]:
+            a, b = b, a
+        pair_a[k], pair_b[k] = a, b
+        if slot_static[b]:
+            pair_lever[k] = levers[a]
+        else:  # joints that move both turn the pair rigidly together and drop out
+            only_a, only_b = moved[a] & ~moved[b], moved[b] & ~moved[a]
+            pair_lever[k] = np.where(only_a, levers[a], 0.0) + np.where(only_b, levers[b], 0.0)
+    pair_lever[:, dof:] = 0.0
+    margin = model.geom_margin[pairs].sum(axis=1) if len(pairs) else np.zeros(0)
+    body_rot = np.array([_quat_to_mat(q) for q in model.body_quat])
+    body_flags = np.where(static_body, 1, 0) | np.where(
+        np.all(body_rot == np.eye(3), axis=(1, 2)), 2, 0)
+    axis_code = np.full(model.njnt, 6, dtype=np.int64)
+    for j, axis in enumerate(model.jnt_axis):
+        for code, unit in enumerate(np.vstack([np.eye(3), -np.eye(3)])):
+            if np.array_equal(axis, unit):
+                axis_code[j] = code
+    return CompiledScene(
+        body_parent=model.body_parentid.astype(np.int64),
+        body_pos=np.array(model.body_pos, dtype=np.float64),
+        body_rot=body_rot,
+        body_jntadr=model.body_jntadr.astype(np.int64),
+        body_jntnum=model.body_jntnum.astype(np.int64),
+        body_flags=body_flags.astype(np.int64),
+        jnt_type=model.jnt_type.astype(np.int64),
+        jnt_qposadr=model.jnt_qposadr.astype(np.int64),
+        jnt_pos=np.array(model.jnt_pos, dtype=np.float64),
+        jnt_axis=np.array(model.jnt_axis, dtype=np.float64),
+        jnt_axis_code=axis_code,
+        qpos0=np.array(model.qpos0, dtype=np.float64),
+        body_xpos=np.where(static_body[:, None], data.xpos, 0.0),
+        body_xmat=np.where(static_body[:, None, None], data.xmat.reshape(-1, 3, 3), 0.0),
+        slot_geom=geoms.astype(np.int64),
+        slot_body=slot_body,
+        slot_static=slot_static,
+        slot_pos=slot_pos,
+        slot_rot=slot_rot,
+        slot_type=slot_type,
+        slot_size=slot_size,
+        slot_radius=slot_radius,
+        pair_a=pair_a,
+        pair_b=pair_b,
+        pair_margin=margin + DISTANCE_TOLERANCE,
+        pair_lever=pair_lever,
+        # Bounding radii plus margin: a plane (always ``b``) adds no radius.
+        pair_reach=(slot_radius[pair_a] + np.where(slot_type[pair_b] == PLANE, 0.0,
+                                                   slot_radius[pair_b])
+                    + margin + DISTANCE_TOLERANCE),
+    )
+
+
+# -------------------------------------------------------------------- distance kernels
+@njit(cache=True, inline="always")
+def _clamp(x, lo, hi):
+    return lo if x < lo else (hi if x > hi else x)
+
+
+@njit(cache=True)
+def _point_segment_sq(px, py, pz, ax, ay, az, bx, by, bz):
+    dx, dy, dz = bx - ax, by - ay, bz - az
+    length = dx * dx + dy * dy + dz * dz
+    t = 0.0
+    if length > 0.0:
+        t = _clamp(((px - ax) * dx + (py - ay) * dy + (pz - az) * dz) / length, 0.0, 1.0)
+    ex, ey, ez = ax + t * dx - px, ay + t * dy - py, az + t * dz - pz
+    return ex * ex + ey * ey + ez * ez
+
+
+@njit(cache=True)
+def _segment_segment_sq(p1x, p1y, p1z, q1x, q1y, q1z, p2x, p2y, p2z, q2x, q2y, q2z):
+    """Squared distance of two segments (Ericson, Real-Time Collision Detection, 5.1.9)."""
+    d1x, d1y, d1z = q1x - p1x, q1y - p1y, q1z - p1z
+    d2x, d2y, d2z = q2x - p2x, q2y - p2y, q2z - p2z
+    rx, ry, rz = p1x - p2x, p1y - p2y, p1z - p2z
+    a = d1x * d1x + d1y * d1y + d1z * d1z
+    e = d2x * d2x + d2y * d2y + d2z * d2z
+    f = d2x * rx + d2y * ry + d2z * rz
+    eps = 1e-18
+    if a <= eps and e <= eps:
+        return rx * rx + ry * ry + rz * rz
+    if a <= eps:
+        s, t = 0.0, _clamp(f / e, 0.0, 1.0)
+    else:
+        c = d1x * rx + d1y * ry + d1z * rz
+        if e <= eps:
+            t, s = 0.0, _clamp(-c / a, 0.0, 1.0)
+        else:
+            b = d1x * d2x + d1y * d2y + d1z * d2z
+            denom = a * e - b * b
+            s = _clamp((b * f - c * e) / denom, 0.0, 1.0) if denom > eps * a * e else 0.0
+            t = (b * s + f) / e
+            if t < 0.0:
+                t, s = 0.0, _clamp(-c / a, 0.0, 1.0)
+            elif t > 1.0:
+                t, s = 1.0, _clamp((b - c) / a, 0.0, 1.0)
+    ex = p1x + d1x * s - (p2x + d2x * t)
+    ey = p1y + d1y * s - (p2y + d2y * t)
+    ez = p1z + d1z * s - (p2z + d2z * t)
+    return ex * ex + ey * ey + ez * ez
+
+
+@njit(cache=True)
+def _to_box(px, py, pz, c, r):
+    """World point -> box frame (``c`` centre, ``r`` rotation as a row-major 9-tuple,
+    world = r @ local)."""
+    dx, dy, dz = px - c[0], py - c[1], pz - c[2]
+    return (r[0] * dx + r[3] * dy + r[6] * dz,
+            r[1] * dx + r[4] * dy + r[7] * dz,
+            r[2] * dx + r[5] * dy + r[8] * dz)
+
+
+@njit(cache=True)
+def _point_box(px, py, pz, c, r, h0, h1, h2):
+    """Distance from a world point to a solid box of half-sizes h (0 inside)."""
+    x, y, z = _to_box(px, py, pz, c, r)
+    ex = max(abs(x) - h0, 0.0)
+    ey = max(abs(y) - h1, 0.0)
+    ez = max(abs(z) - h2, 0.0)
+    return math.sqrt(ex * ex + ey * ey + ez * ez)
+
+
+@njit(cache=True)
+def _piece_minimum(lo, hi, s0, s1, s2, d0, d1, d2, h0, h1, h2):
+    """Least squared box distance of p(t) = s + t·d over [lo, hi], a piece on which no
+    coordinate crosses a face plane: a quadratic qa t² + qb t + qc, minimised exactly."""
+    mid = 0.5 * (lo + hi)
+    qa = qb = qc = 0.0
+    for k in range(3):
+        if k == 0:
+            s, d, h = s0, d0, h0
+        elif k == 1:
+            s, d, h = s1, d1, h1
+        else:
+            s, d, h = s2, d2, h2
+        x = s + mid * d
+        if x > h:
+            offset = s - h
+        elif x < -h:
+            offset = s + h
+        else:
+            continue
+        qa += d * d
+        qb += 2.0 * d * offset
+        qc += offset * offset
+    if qa > 0.0:
+        t = _clamp(-qb / (2.0 * qa), lo, hi)
+    else:
+        t = lo if qb > 0.0 else hi
+    return (qa * t + qb) * t + qc
+
+
+@njit(cache=True)
+def _segment_box(ax, ay, az, bx, by, bz, c, r, h0, h1, h2):
+    """Exact distance from the segment a–b to a solid box: the squared distance along the
+    segment is a sum of clamped quadratics, smooth between the breakpoints where a
+    coordinate crosses a face plane; each piece is minimised in closed form."""
+    s0, s1, s2 = _to_box(ax, ay, az, c, r)
+    e0, e1, e2 = _to_box(bx, by, bz, c, r)
+    d0, d1, d2 = e0 - s0, e1 - s1, e2 - s2
+    # The ≤ 6 interior breakpoints, kept sorted by insertion (no allocation).
+    c0 = c1 = c2 = c3 = c4 = c5 = 2.0
+    count = 0
+    for k in range(6):
+        axis, side = k // 2, -1.0 if k % 2 == 0 else 1.0
+        if axis == 0:
+            s, d, h = s0, d0, h0
+        elif axis == 1:
+            s, d, h = s1, d1, h1
+        else:
+            s, d, h = s2, d2, h2
+        if d == 0.0:
+            continue
+        t = (side * h - s) / d
+        if not 0.0 < t < 1.0:
+            continue
+        # insert t into the sorted c0..c5 (unused slots hold 2.0)
+        if t < c5:
+            c5 = t
+        if c5 < c4:
+            c4, c5 = c5, c4
+        if c4 < c3:
+            c3, c4 = c4, c3
+        if c3 < c2:
+            c2, c3 = c3, c2
+        if c2 < c1:
+            c1, c2 = c2, c1
+        if c1 < c0:
+            c0, c1 = c1, c0
+        count += 1
+    best = math.inf
+    lo = 0.0
+    for piece in range(count + 1):
+        if piece < count:
+            if piece == 0:
+                hi = c0
+            elif piece == 1:
+                hi = c1
+            elif piece == 2:
+                hi = c2
+            elif piece == 3:
+                hi = c3
+            elif piece == 4:
+                hi = c4
+            else:
+                hi = c5
+        else:
+            hi = 1.0
+        value = _piece_minimum(lo, hi, s0, s1, s2, d0, d1, d2, h0, h1, h2)
+        if value < best:
+            best = value
+        lo = hi
+    return math.sqrt(max(best, 0.0))
+
+
+@njit(cache=True)
+def _box_box(c1, r1, a0, a1, a2, c2, r2, b0, b1, b2):
+    """A lower bound on the distance of two boxes: the largest gap of their projections on
+    the 15 separating-axis candidates (face normals and edge cross products); a
+    projection never lengthens a distance."""
+    dx, dy, dz = c2[0] - c1[0], c2[1] - c1[1], c2[2] - c1[2]
+    best = -math.inf
+    for k in range(15):
+        if k < 3:
+            lx, ly, lz = r1[k], r1[3 + k], r1[6 + k]
+        elif k < 6:
+            lx, ly, lz = r2[k - 3], r2[k], r2[k + 3]
+        else:
+            i, j = (k - 6) // 3, (k - 6) % 3
+            ux, uy, uz = r1[i], r1[3 + i], r1[6 + i]
+            vx, vy, vz = r2[j], r2[3 + j], r2[6 + j]
+            lx, ly, lz = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
+            norm = math.sqrt(lx * lx + ly * ly + lz * lz)
+            if norm < 1e-9:
+                continue
+            lx, ly, lz = lx / norm, ly / norm, lz / norm
+        extent = (a0 * abs(lx * r1[0] + ly * r1[3] + lz * r1[6])
+                  + a1 * abs(lx * r1[1] + ly * r1[4] + lz * r1[7])
+                  + a2 * abs(lx * r1[2] + ly * r1[5] + lz * r1[8])
+                  + b0 * abs(lx * r2[0] + ly * r2[3] + lz * r2[6])
+                  + b1 * abs(lx * r2[1] + ly * r2[4] + lz * r2[7])
+                  + b2 * abs(lx * r2[2] + ly * r2[5] + lz * r2[8]))
+        gap = abs(lx * dx + ly * dy + lz * dz) - extent
+        if gap > best:
+            best = gap
+    return best
+
+
+@njit(cache=True)
+def _plane_height(px, py, pz, c, r):
+    """Height of a world point above a plane (its z axis; the half-space below is solid)."""
+    return r[2] * (px - c[0]) + r[5] * (py - c[1]) + r[8] * (pz - c[2])
+
+
+@njit(cache=True)
+def _capsule_ends(c, r, half):
+    return (c[0] - half * r[2], c[1] - half * r[5], c[2] - half * r[8],
+            c[0] + half * r[2], c[1] + half * r[5], c[2] + half * r[8])
+
+
+@njit(cache=True)
+def _bound_shapes(ka, ca, ra, sa0, sa1, sa2, kb, cb, rb, sb0, sb1, sb2):
+    """Lower bound on the distance of two containers of kinds SPHERE/CAPSULE/BOX/PLANE."""
+    if ka > kb:
+        return _bound_ordered(kb, cb, rb, sb0, sb1, sb2, ka, ca, ra, sa0, sa1, sa2)
+    return _bound_ordered(ka, ca, ra, sa0, sa1, sa2, kb, cb, rb, sb0, sb1, sb2)
+
+
+@njit(cache=True)
+def _bound_ordered(ka, ca, ra, sa0, sa1, sa2, kb, cb, rb, sb0, sb1, sb2):
+    """:func:`_bound_shapes` with ``ka <= kb``."""
+    if ka == SPHERE:
+        if kb == SPHERE:
+            dx, dy, dz = ca[0] - cb[0], ca[1] - cb[1], ca[2] - cb[2]
+            return math.sqrt(dx * dx + dy * dy + dz * dz) - sa0 - sb0
+        if kb == CAPSULE:
+            e = _capsule_ends(cb, rb, sb1)
+            return math.sqrt(_point_segment_sq(ca[0], ca[1], ca[2], e[0], e[1], e[2],
+                                               e[3], e[4], e[5])) - sa0 - sb0
+        if kb == BOX:
+            return _point_box(ca[0], ca[1], ca[2], cb, rb, sb0, sb1, sb2) - sa0
+        return _plane_height(ca[0], ca[1], ca[2], cb, rb) - sa0
+    if ka == CAPSULE:
+        e = _capsule_ends(ca, ra, sa1)
+        if kb == CAPSULE:
+            f = _capsule_ends(cb, rb, sb1)
+            return math.sqrt(_segment_segment_sq(e[0], e[1], e[2], e[3], e[4], e[5],
+                                                 f[0], f[1], f[2], f[3], f[4], f[5])
+                             ) - sa0 - sb0
+        if kb == BOX:
+            return _segment_box(e[0], e[1], e[2], e[3], e[4], e[5], cb, rb, sb0, sb1, sb2) - sa0
+        return min(_plane_height(e[0], e[1], e[2], cb, rb),
+                   _plane_height(e[3], e[4], e[5], cb, rb)) - sa0
+    if ka == BOX:
+        if kb == BOX:
+            return _box_box(ca, ra, sa0, sa1, sa2, cb, rb, sb0, sb1, sb2)
+        reach = (sa0 * abs(rb[2] * ra[0] + rb[5] * ra[3] + rb[8] * ra[6])
+                 + sa1 * abs(rb[2] * ra[1] + rb[5] * ra[4] + rb[8] * ra[7])
+                 + sa2 * abs(rb[2] * ra[2] + rb[5] * ra[5] + rb[8] * ra[8]))
+        return _plane_height(ca[0], ca[1], ca[2], cb, rb) - reach
+    return -math.inf
+
+
+@njit(cache=True)
+def _bound_pair(ka, ca, ra, sa, kb, cb, rb, sb):
+    """Lower bound on the distance of two slots' containers, any kinds: a cylinder is held
+    by the capsule of its radius over its axis and by its box, so the larger of the two
+    bounds holds; an unbounded kind gives −inf (MuJoCo decides)."""
+    if ka == UNBOUNDED or kb == UNBOUNDED or (ka == PLANE and kb == PLANE):
+        return -math.inf
+    best = -math.inf
+    for use_a in range(2 if ka == CYLINDER else 1):
+        ta, a0, a1, a2 = ka, sa[0], sa[1], sa[2]
+        if ka == CYLINDER:
+            ta, a0, a1, a2 = (BOX, sa[0], sa[0], sa[1]) if use_a else (CAPSULE, sa[0], sa[1], 0.0)
+        for use_b in range(2 if kb == CYLINDER else 1):
+            tb, b0, b1, b2 = kb, sb[0], sb[1], sb[2]
+            if kb == CYLINDER:
+                tb, b0, b1, b2 = ((BOX, sb[0], sb[0], sb[1]) if use_b
+                                  else (CAPSULE, sb[0], sb[1], 0.0))
+            value = _bound_shapes(ta, ca, ra, a0, a1, a2, tb, cb, rb, b0, b1, b2)
+            if value > best:
+                best = value
+    return best
+
+
+# ----------------------------------------------------------------- forward kinematics
+@njit(cache=True)
+def _turn(m00, m01, m02, m10, m11, m12, m20, m21, m22, axis, c, s):
+    """The frame m times the rotation by (c, s) = (cos θ, sin θ) about a local unit axis
+    (``axis``, (3,)), applied on the right (Rodrigues' formula)."""
+    ux, uy, uz = axis[0], axis[1], axis[2]
+    t = 1.0 - c
+    r00, r01, r02 = c + t * ux * ux, t * ux * uy - s * uz, t * ux * uz + s * uy
+    r10, r11, r12 = t * ux * uy + s * uz, c + t * uy * uy, t * uy * uz - s * ux
+    r20, r21, r22 = t * ux * uz - s * uy, t * uy * uz + s * ux, c + t * uz * uz
+    return (m00 * r00 + m01 * r10 + m02 * r20, m00 * r01 + m01 * r11 + m02 * r21,
+            m00 * r02 + m01 * r12 + m02 * r22,
+            m10 * r00 + m11 * r10 + m12 * r20, m10 * r01 + m11 * r11 + m12 * r21,
+            m10 * r02 + m11 * r12 + m12 * r22,
+            m20 * r00 + m21 * r10 + m22 * r20, m20 * r01 + m21 * r11 + m22 * r21,
+            m20 * r02 + m21 * r12 + m22 * r22)
+
+
+@njit(cache=True)
+def _forward(body_parent, body_pos, body_rot, body_jntadr, body_jntnum, body_flags,
+             jnt_type, jnt_qposadr, jnt_pos, jnt_axis, jnt_axis_code, qpos0, qpos, xpos,
+             xmat):
+    """Body frames for ``qpos``, composed as ``mj_kinematics`` does (world = xmat @ local):
+    the parent's frame times the body offset, then each joint in order (a slide shifts
+    along its axis, a hinge turns about its anchor), joint values relative to ``qpos0``.
+
+    Static bodies (``body_flags`` bit 0) keep the frames set at construction; bit 1 marks
+    an identity body rotation. Hinges about a local ±x/±y/±z axis (``jnt_axis_code`` 0–5)
+    turn two columns only. The frame being built lives in scalars: stores to ``xmat``
+    would otherwise force reloads of the parent's frame (the two may alias).
+    """
+    for b in range(1, len(body_parent)):
+        flags = body_flags[b]
+        if flags & 1:
+            continue
+        p = body_parent[b]
+        p00, p01, p02 = xmat[p, 0, 0], xmat[p, 0, 1], xmat[p, 0, 2]
+        p10, p11, p12 = xmat[p, 1, 0], xmat[p, 1, 1], xmat[p, 1, 2]
+        p20, p21, p22 = xmat[p, 2, 0], xmat[p, 2, 1], xmat[p, 2, 2]
+        bx, by, bz = body_pos[b, 0], body_pos[b, 1], body_pos[b, 2]
+        x0 = xpos[p, 0] + p00 * bx + p01 * by + p02 * bz
+        x1 = xpos[p, 1] + p10 * bx + p11 * by + p12 * bz
+        x2 = xpos[p, 2] + p20 * bx + p21 * by + p22 * bz
+        if flags & 2:
+            m00, m01, m02 = p00, p01, p02
+            m10, m11, m12 = p10, p11, p12
+            m20, m21, m22 = p20, p21, p22
+        else:
+            r = body_rot[b]
+            m00 = p00 * r[0, 0] + p01 * r[1, 0] + p02 * r[2, 0]
+            m01 = p00 * r[0, 1] + p01 * r[1, 1] + p02 * r[2, 1]
+            m02 = p00 * r[0, 2] + p01 * r[1, 2] + p02 * r[2, 2]
+            m10 = p10 * r[0, 0] + p11 * r[1, 0] + p12 * r[2, 0]
+            m11 = p10 * r[0, 1] + p11 * r[1, 1] + p12 * r[2, 1]
+            m12 = p10 * r[0, 2] + p11 * r[1, 2] + p12 * r[2, 2]
+            m20 = p20 * r[0, 0] + p21 * r[1, 0] + p22 * r[2, 0]
+            m21 = p20 * r[0, 1] + p21 * r[1, 1] + p22 * r[2, 1]
+            m22 = p20 * r[0, 2] + p21 * r[1, 2] + p22 * r[2, 2]
+        for j in range(body_jntadr[b], body_jntadr[b] + body_jntnum[b]):
+            adr = jnt_qposadr[j]
+            value = qpos[adr] - qpos0[adr]
+            if jnt_type[j] == _SLIDE:
+                ux, uy, uz = jnt_axis[j, 0], jnt_axis[j, 1], jnt_axis[j, 2]
+                x0 += value * (m00 * ux + m01 * uy + m02 * uz)
+                x1 += value * (m10 * ux + m11 * uy + m12 * uz)
+                x2 += value * (m20 * ux + m21 * uy + m22 * uz)
+                continue
+            px, py, pz = jnt_pos[j, 0], jnt_pos[j, 1], jnt_pos[j, 2]
+            a0 = x0 + m00 * px + m01 * py + m02 * pz
+            a1 = x1 + m10 * px + m11 * py + m12 * pz
+            a2 = x2 + m20 * px + m21 * py + m22 * pz
+            code = jnt_axis_code[j]
+            c = math.cos(value)
+            s = math.sin(value) if code < 3 or code == 6 else -math.sin(value)
+            axis = code % 3 if code < 6 else 3
+            if axis == 0:  # columns 1, 2 turn: m·Rx
+                m01, m02 = c * m01 + s * m02, c * m02 - s * m01
+                m11, m12 = c * m11 + s * m12, c * m12 - s * m11
+                m21, m22 = c * m21 + s * m22, c * m22 - s * m21
+            elif axis == 1:  # columns 2, 0 turn: m·Ry
+                m00, m02 = c * m00 - s * m02, c * m02 + s * m00
+                m10, m12 = c * m10 - s * m12, c * m12 + s * m10
+                m20, m22 = c * m20 - s * m22, c * m22 + s * m20
+            elif axis == 2:  # columns 0, 1 turn: m·Rz
+                m00, m01 = c * m00 + s * m01, c * m01 - s * m00
+                m10, m11 = c * m10 + s * m11, c * m11 - s * m10
+                m20, m21 = c * m20 + s * m21, c * m21 - s * m20
+            else:
+                m00, m01, m02, m10, m11, m12, m20, m21, m22 = _turn(
+                    m00, m01, m02, m10, m11, m12, m20, m21, m22, jnt_axis[j], c, s)
+            x0 = a0 - (m00 * px + m01 * py + m02 * pz)
+            x1 = a1 - (m10 * px + m11 * py + m12 * pz)
+            x2 = a2 - (m20 * px + m21 * py + m22 * pz)
+        xpos[b, 0], xpos[b, 1], xpos[b, 2] = x0, x1, x2
+        xmat[b, 0, 0], xmat[b, 0, 1], xmat[b, 0, 2] = m00, m01, m02
+        xmat[b, 1, 0], xmat[b, 1, 1], xmat[b, 1, 2] = m10, m11, m12
+        xmat[b, 2, 0], xmat[b, 2, 1], xmat[b, 2, 2] = m20, m21, m22
+
+
+@njit(cache=True)
+def _place_slots(slot_body, slot_static, slot_pos, slot_rot, xpos, xmat, wpos, wrot):
+    """World frames of the moving slots' containers (static slots were placed once)."""
+    for s in range(len(slot_body)):
+        if slot_static[s]:
+            continue
+        b = slot_body[s]
+        m00, m01, m02 = xmat[b, 0, 0], xmat[b, 0, 1], xmat[b, 0, 2]
+        m10, m11, m12 = xmat[b, 1, 0], xmat[b, 1, 1], xmat[b, 1, 2]
+        m20, m21, m22 = xmat[b, 2, 0], xmat[b, 2, 1], xmat[b, 2, 2]
+        px, py, pz = slot_pos[s, 0], slot_pos[s, 1], slot_pos[s, 2]
+        wpos[s, 0] = xpos[b, 0] + m00 * px + m01 * py + m02 * pz
+        wpos[s, 1] = xpos[b, 1] + m10 * px + m11 * py + m12 * pz
+        wpos[s, 2] = xpos[b, 2] + m20 * px + m21 * py + m22 * pz
+        r = slot_rot[s]
+        for k in range(3):
+            r0, r1, r2 = r[0, k], r[1, k], r[2, k]
+            wrot[s, 0, k] = m00 * r0 + m01 * r1 + m02 * r2
+            wrot[s, 1, k] = m10 * r0 + m11 * r1 + m12 * r2
+            wrot[s, 2, k] = m20 * r0 + m21 * r1 + m22 * r2
+
+
+# ------------------------------------------------------------------- samples and paths
+@njit(cache=True)
+def _sample_step(tree, geometry, qpos, xpos, xmat, wpos, wrot, rates, coarse, cap, counters):
+    """The free step around the sample ``qpos``: the largest s ≤ ``cap`` (in path
+    parameter t) such that every pair stays farther than its margin for |t − t_i| ≤ s, from
+    lower bounds only; −1 if some pair may be within its margin (MuJoCo must decide).
+
+    Bounding spheres first (``coarse``: their step per pair); exact container bounds only
+    for pairs whose sphere step is below the best step found so far, the nearest first.
+    """
+    (body_parent, body_pos, body_rot, body_jntadr, body_jntnum, body_flags, jnt_type,
+     jnt_qposadr, jnt_pos, jnt_axis, jnt_axis_code, qpos0) = tree
+    (slot_body, slot_static, slot_pos, slot_rot, slot_type, slot_size, slot_radius,
+     pair_a, pair_b, pair_margin, _, pair_reach) = geometry
+    _forward(body_parent, body_pos, body_rot, body_jntadr, body_jntnum, body_flags,
+             jnt_type, jnt_qposadr, jnt_pos, jnt_axis, jnt_axis_code, qpos0, qpos, xpos,
+             xmat)
+    _place_slots(slot_body, slot_static, slot_pos, slot_rot, xpos, xmat, wpos, wrot)
+    nearest, nearest_step = -1, math.inf
+    for k in range(len(pair_a)):
+        a, b = pair_a[k], pair_b[k]
+        # Bounding spheres (a half-space for a plane) farther apart than the pair can
+        # close within ``cap`` cannot limit the step: no sqrt, no division for them.
+        reach = pair_reach[k]
+        limit = reach + rates[k] * cap
+        if slot_type[b] == PLANE:
+            height = (wrot[b, 0, 2] * (wpos[a, 0] - wpos[b, 0])
+                      + wrot[b, 1, 2] * (wpos[a, 1] - wpos[b, 1])
+                      + wrot[b, 2, 2] * (wpos[a, 2] - wpos[b, 2]))
+            if height >= limit:
+                coarse[k] = cap
+                continue
+            gap = height - reach
+        else:
+            dx, dy, dz = wpos[a, 0] - wpos[b, 0], wpos[a, 1] - wpos[b, 1], wpos[a, 2] - wpos[b, 2]
+            squared = dx * dx + dy * dy + dz * dz
+            if squared >= limit * limit:
+                coarse[k] = cap
+                continue
+            gap = math.sqrt(squared) - reach
+        if gap > 0.0:
+            step = gap / rates[k] if rates[k] > 0.0 else math.inf
+        else:
+            step = -1.0
+        coarse[k] = step
+        if step < nearest_step:
+            nearest, nearest_step = k, step
+    best = cap
+    if nearest_step >= best:
+        return best
+    # Finer bounds, the nearest pair first (it usually sets ``best``), then every pair whose
+    # coarser bound could still limit the step: a's bounding sphere against a static b's
+    # container, then the two containers.
+    for visit in range(-1, len(pair_a)):
+        k = nearest if visit < 0 else visit
+        if (visit >= 0 and k == nearest) or coarse[k] >= best:
+            continue
+        a, b = pair_a[k], pair_b[k]
+        ca, cb, rb, sb = _centre(wpos, a), _centre(wpos, b), _rotation(wrot, b), _size(slot_size, b)
+        sphere = -math.inf
+        if slot_static[b] and slot_type[b] != PLANE:
+            sphere = _bound_pair(SPHERE, ca, rb, (slot_radius[a], 0.0, 0.0), slot_type[b], cb,
+                                 rb, sb) - pair_margin[k]
+            if sphere > 0.0 and (rates[k] == 0.0 or sphere >= best * rates[k]):
+                continue
+        counters[2] += 1
+        # Both are lower bounds of the same distance (the sphere holds a's container).
+        gap = max(sphere, _bound_pair(slot_type[a], ca, _rotation(wrot, a), _size(slot_size, a),
+                                      slot_type[b], cb, rb, sb) - pair_margin[k])
+        if not gap > 0.0:
+            return -1.0
+        step = gap / rates[k] if rates[k] > 0.0 else math.inf
+        if step < best:
+            best = step
+    return best
+
+
+@njit(cache=True, inline="always")
+def _centre(wpos, s):
+    return (wpos[s, 0], wpos[s, 1], wpos[s, 2])
+
+
+@njit(cache=True, inline="always")
+def _size(size, s):
+    return (size[s, 0], size[s, 1], size[s, 2])
+
+
+@njit(cache=True, inline="always")
+def _rotation(wrot, s):
+    return (wrot[s, 0, 0], wrot[s, 0, 1], wrot[s, 0, 2], wrot[s, 1, 0], wrot[s, 1, 1],
+            wrot[s, 1, 2], wrot[s, 2, 0], wrot[s, 2, 1], wrot[s, 2, 2])
+
+
+@njit(cache=True)
+def _exact_contacts(qpos, exact):
+    """``mj_kinematics`` + ``mj_collision`` at ``qpos`` on the checker's ``MjData``
+    (``exact``: its qpos and ncon views and the functions' addresses): the contact count."""
+    data_qpos, ncon, kinematics, collision, model, data = exact
+    for j in range(len(qpos)):
+        data_qpos[j] = qpos[j]
+    native.call_model_data(kinematics, model, data)
+    native.call_model_data(collision, model, data)
+    return ncon[0]
+
+
+@njit(cache=True)
+def _work(tree, geometry):
+    """Scratch arrays of one kernel call: body frames (static ones preset), slot frames
+    (static ones preset), per-pair rates and sphere steps."""
+    body_xpos, body_xmat = tree[-2], tree[-1]
+    slot_pos, slot_rot, pair_a = geometry[2], geometry[3], geometry[7]
+    return (body_xpos.copy(), body_xmat.copy(), slot_pos.copy(), slot_rot.copy(),
+            np.ones(len(pair_a)), np.empty(len(pair_a)))
+
+
+@njit(cache=True)
+def _fill_qpos(qpos, qpos0, row):
+    """``qpos`` = ``qpos0`` with its leading entries replaced by ``row``."""
+    for j in range(len(qpos0)):
+        qpos[j] = row[j] if j < len(row) else qpos0[j]
+
+
+@njit(cache=True)
+def path_steps(start_rows, end_rows, lever, resolution, out):
+    """``out[m]`` = n = max(⌈D/δ − 1e−12⌉, 1) grid intervals of path m, where
+    D = Σ_j lever_j·|Δq_j| summed in joint order (the one definition every backend uses,
+    so a path has the same grid whether it is checked alone or in a batch). A start
+    array with one row serves every end row."""
+    for m in range(end_rows.shape[0]):
+        start = start_rows[0] if start_rows.shape[0] == 1 else start_rows[m]
+        bound = 0.0
+        for j in range(end_rows.shape[1]):
+            bound += lever[j] * abs(end_rows[m, j] - start[j])
+        n = math.ceil(bound / resolution - 1e-12)
+        out[m] = n if n > 1 else 1
+
+
+@njit(cache=True)
+def check_configurations(tree, geometry, exact, rows, out, counters):
+    """``out[i]``: MuJoCo's contact count at configuration ``rows[i]`` (its leading qpos
+    entries; the rest stay at ``qpos0``): 0 where the bounds prove it free, MuJoCo's own
+    count elsewhere. ``counters`` (3,): samples bounded, MuJoCo checks and exact pair
+    bounds computed are added to it."""
+    xpos, xmat, wpos, wrot, rates, coarse = _work(tree, geometry)
+    kinematic = tree[:12]
+    qpos0 = tree[11]
+    qpos = np.empty(len(qpos0))
+    for i in range(rows.shape[0]):
+        _fill_qpos(qpos, qpos0, rows[i])
+        counters[0] += 1
+        step = _sample_step(kinematic, geometry, qpos, xpos, xmat, wpos, wrot, rates, coarse,
+                            0.0, counters)
+        if step >= 0.0:
+            out[i] = 0
+        else:
+            counters[1] += 1
+            out[i] = _exact_contacts(qpos, exact)
+
+
+@njit(cache=True)
+def check_paths(tree, geometry, exact, start_rows, end_rows, steps, first, out, counters):
+    """``out[m]``: a grid index i of path m (q(t) = q0 + (i/n)(q1 − q0), n = ``steps[m]``;
+    leading qpos entries, the rest at ``qpos0``) whose sample MuJoCo finds in contact, −1
+    if none has one. With ``first`` it is the lowest such index; otherwise the first one
+    found (the verdict is the same). A start array with one row serves every end row.
+
+    Samples are visited in raked order: the middle of every unresolved interval of grid
+    indices, breadth first; a sample the bounds prove free clears every index within its
+    free step on both sides, any other is checked by MuJoCo."""
+    xpos, xmat, wpos, wrot, rates, coarse = _work(tree, geometry)
+    kinematic = tree[:12]
+    qpos0 = tree[11]
+    pair_lever = geometry[10]
+    npair, nq = pair_lever.shape
+    dof = end_rows.shape[1]
+    delta, qpos, start = np.zeros(nq), np.empty(nq), np.empty(nq)
+    size = 2
+    for m in range(len(steps)):
+        size = max(size, steps[m] + 2)
+    queue_lo, queue_hi = np.empty(size, np.int64), np.empty(size, np.int64)
+    for m in range(len(steps)):
+        n = steps[m]
+        _fill_qpos(start, qpos0, start_rows[0] if start_rows.shape[0] == 1 else start_rows[m])
+        for j in range(dof):
+            delta[j] = end_rows[m, j] - start[j]
+        for k in range(npair):
+            rate = 0.0
+            for j in range(dof):
+                rate += pair_lever[k, j] * abs(delta[j])
+            rates[k] = rate
+        found = n + 1
+        head, tail = 0, 1  # circular queue of intervals [lo, hi]
+        queue_lo[0], queue_hi[0] = 0, n
+        while head != tail:
+            lo, hi = queue_lo[head], queue_hi[head]
+            head = (head + 1) % size
+            if hi >= found:
+                hi = found - 1
+            if lo > hi:
+                continue
+            mid = (lo + hi) // 2
+            fraction = mid / n
+            for j in range(nq):
+                qpos[j] = start[j] + fraction * delta[j] if j < dof else start[j]
+            counters[0] += 1
+            step = _sample_step(kinematic, geometry, qpos, xpos, xmat, wpos, wrot, rates,
+                                coarse, max(mid - lo, hi - mid) / n, counters)
+            reach = 0
+            if step < 0.0:
+                counters[1] += 1
+                if _exact_contacts(qpos, exact):
+                    found = mid
+                    if not first:
+                        break
+                    if lo <= mid - 1:
+                        queue_lo[tail], queue_hi[tail] = lo, mid - 1
+                        tail = (tail + 1) % size
+                    continue
+            else:
+                scaled = step * n
+                reach = n if scaled >= n else int(scaled)
+            if lo <= mid - reach - 1:
+                queue_lo[tail], queue_hi[tail] = lo, mid - reach - 1
+                tail = (tail + 1) % size
+            if mid + reach + 1 <= hi:
+                queue_lo[tail], queue_hi[tail] = mid + reach + 1, hi
+                tail = (tail + 1) % size
+        out[m] = found if found <= n else -1
+
+
+# --------------------------------------------------------------------------- the filter
+class CompiledFilter:
+    """The kernels bound to one checker's model and ``MjData`` (which must outlive it).
+
+    ``model`` carries the checker's margins; ``pairs`` are its candidate pairs.
+    Configurations are the leading ``dof`` qpos entries (the rest stay at ``qpos0``).
+    """
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, dof: int,
+                 pairs: np.ndarray) -> None:
+        self.scene = compile_scene(model, dof, pairs)
+        self._model, self._data = model, data
+        self._exact = (data.qpos, native.ncon_view(data),
+                       native.function_address("mj_kinematics"),
+                       native.function_address("mj_collision"), model._address, data._address)
+        #: Samples bounded, MuJoCo checks, exact pair bounds: totals since construction
+        #: (benchmarks and tests read them).
+        self.counters = np.zeros(3, dtype=np.int64)
+
+    def contacts(self, rows: np.ndarray) -> np.ndarray:
+        """(M,) contact counts at configurations ``rows`` (M, dof): 0 where proven free."""
+        out = np.empty(len(rows), dtype=np.int64)
+        check_configurations(self.scene.tree, self.scene.geometry, self._exact, rows, out,
+                             self.counters)
+        return out
+
+    def paths(self, start_rows: np.ndarray, end_rows: np.ndarray, steps: np.ndarray,
+              first: bool) -> np.ndarray:
+        """(M,) grid index of a colliding sample per path (−1: free), the lowest with
+        ``first``; ``start_rows`` (M or 1, dof), ``end_rows`` (M, dof), ``steps`` (M,)."""
+        out = np.empty(len(end_rows), dtype=np.int64)
+        check_paths(self.scene.tree, self.scene.geometry, self._exact, start_rows, end_rows,
+                    steps, first, out, self.counters)
+        return out
+
+
+def warm_up() -> None:
+    """Compile (or load from numba's on-disk cache) every kernel with the argument types
+    the checker passes, on a small model: ``make`` runs it once before the tests, so
+    parallel test processes load the cache instead of compiling each."""
+    from .collision import CollisionChecker
+    from .model import build_model
+
+    model = build_model("anthropomorphic", "random_clutter")
+    for pad in (True, False):
+        checker = CollisionChecker(model, dof=6, pad=pad, backend="compiled")
+        q = np.zeros((2, 6))
+        q[1, 1] = 0.5
+        checker.collides(q)
+        checker.check_paths(q[0], q[1])
+        checker.paths_collide(q[0], q)
+        checker.paths_collide(q, q[::-1])
+
+
+if __name__ == "__main__":
+    warm_up()

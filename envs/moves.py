@@ -1,0 +1,394 @@
+"""Pricing of moves: IK candidates, collision verdicts and reward terms, in one place.
+
+The env, its ``edge_rewards``, the DP planners and the rule baselines all price a move
+through this module, so a planner's return is exactly what ``step`` pays and no baseline
+reads env internals.
+
+:class:`MovePricer` belongs to one env (its arm, collision checker, cost and penalties)
+and owns the caches. A cache is cleared when it would grow past its bound (between calls,
+never losing the call's own results):
+
+==================== ============ ========================================================
+cache                bound         key → value
+==================== ============ ========================================================
+poses                50,000        waypoint pose → IK candidates, validity, endpoint hits
+configurations       200,000       configuration → collides (the generators' predicate)
+paths                200,000       (q0, q1) → the linear path collides
+==================== ============ ========================================================
+
+A task with a finite pose set (the milling cell's tool changes) solves and checks each
+pose and each move once; random tasks mostly miss, and a miss costs one batched call.
+
+:class:`TaskMoves` is one task's ladder: the candidates of every waypoint and the price of
+every move into it, by :meth:`TaskMoves.terms`, the one function that prices a move.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit
+
+from envs.costs import TransitionCost
+from envs.kinematics import Arm
+from envs.models import CollisionChecker
+from envs.tasks import Task
+
+#: Cache bounds (entries), see the module docstring.
+POSE_CACHE_SIZE = 50_000
+CONFIGURATION_CACHE_SIZE = 200_000
+PATH_CACHE_SIZE = 200_000
+
+#: The reward terms of a move, in the order they are summed (``info`` reports each).
+REWARD_TERMS = ("reward_travel", "reward_time", "reward_collision", "reward_invalid",
+                "reward_unfinished")
+
+
+@dataclass
+class _Cache:
+    """A dict cleared when it would grow past ``bound``."""
+
+    bound: int
+    entries: dict = field(default_factory=dict)
+
+    def make_room(self, count: int) -> None:
+        if len(self.entries) + count > self.bound:
+            self.entries.clear()
+
+    def __len__(self) -> int:
+        return len(self.entries)
+
+
+class MovePricer:
+    """Prices the moves of one arm in one scene with one cost and penalty setting.
+
+    ``checker`` decides collisions; ``cost`` prices travel and time; the penalties and
+    ``terminate_on_collision`` are the env's. Shared by every :class:`TaskMoves` it makes,
+    so caches survive from task to task.
+    """
+
+    def __init__(
+        self,
+        arm: Arm,
+        checker: CollisionChecker,
+        cost: TransitionCost,
+        *,
+        collision_penalty: float,
+        invalid_penalty: float,
+        terminate_on_collision: bool,
+    ) -> None:
+        self.arm, self.checker, self.cost = arm, checker, cost
+        self.collision_penalty = float(collision_penalty)
+        self.invalid_penalty = float(invalid_penalty)
+        self.terminate_on_collision = bool(terminate_on_collision)
+        lower, upper = arm.joint_limits[:, 0], arm.joint_limits[:, 1]
+        #: The largest travel of any move (between opposite joint limits): normalises the
+        #: observation's travel.
+        self.travel_scale = float(cost.travel(lower, upper))
+        #: The dearest move any branch choice can cost (travel and time between opposite
+        #: joint limits); an episode that ends early pays it for every waypoint it skips.
+        self.max_transition_cost = float(
+            cost.travel_weight * self.travel_scale + cost.time_weight * cost.time(lower, upper)
+        )
+        self.poses = _Cache(POSE_CACHE_SIZE)
+        self.configurations = _Cache(CONFIGURATION_CACHE_SIZE)
+        self.paths = _Cache(PATH_CACHE_SIZE)
+
+    # ------------------------------------------------------------------ candidates
+    def solve(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``candidates`` (N, K, dof), ``valid`` (N, K), ``endpoint_collision`` (N, K) of
+        waypoint ``poses`` (N, 4, 4): one batched IK call and one batched configuration
+        check for the poses not seen before (IK is row-wise exact, so a cached row is the
+        row a fresh call would give)."""
+        poses = np.ascontiguousarray(poses, dtype=np.float64)
+        cache = self.poses.entries
+        keys = [pose.tobytes() for pose in poses]
+        rows = [cache.get(key) for key in keys]
+        missing = list({keys[i]: i for i, row in enumerate(rows) if row is None}.values())
+        if missing:
+            candidates, valid = self.arm.ik(poses[missing])
+            endpoint = np.zeros_like(valid)
+            endpoint[valid] = self.configurations_collide(candidates[valid])
+            new = {
+                keys[i]: (candidates[row], valid[row], endpoint[row])
+                for row, i in enumerate(missing)
+            }
+            self.poses.make_room(len(new))
+            cache.update(new)
+            rows = [new[key] if row is None else row for key, row in zip(keys, rows, strict=True)]
+        return (
+            np.array([row[0] for row in rows]),
+            np.array([row[1] for row in rows]),
+            np.array([row[2] for row in rows]),
+        )
+
+    def task(self, task: Task) -> TaskMoves:
+        """The ladder of ``task``: its candidates solved, ready to price moves."""
+        candidates, valid, endpoint = self.solve(task.poses)
+        if not valid.any(axis=-1).all():
+            raise RuntimeError("task generator produced a waypoint without a valid branch")
+        return TaskMoves(self, task, candidates, valid, endpoint)
+
+    # ------------------------------------------------------------------ collisions
+    def configurations_collide(self, q: np.ndarray) -> np.ndarray:
+        """(M,) bool for configurations ``q`` (M, dof), through the cache."""
+        q = _finite_rows(q, "configurations")
+        keys = [row.tobytes() for row in q]
+        return self._cached(self.configurations, keys,
+                            lambda index: self.checker.rows_collide(q[index]))
+
+    def paths_collide(self, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
+        """(M,) bool: the linear path from ``q0`` ((dof,) or (M, dof)) to each of ``q1``
+        (M, dof) collides, through the cache; the misses go through one checker call."""
+        q1 = _finite_rows(q1, "path ends")
+        if np.ndim(q0) == 1:
+            q0 = _finite_rows(np.asarray(q0)[None], "path starts")
+            prefix = q0.tobytes()
+            keys = [prefix + row.tobytes() for row in q1]
+
+            def compute(index):
+                return self.checker.rows_paths_collide(q0, q1[index])
+        else:
+            q0 = _finite_rows(q0, "path starts")
+            keys = [a.tobytes() + b.tobytes() for a, b in zip(q0, q1, strict=True)]
+
+            def compute(index):
+                return self.checker.rows_paths_collide(q0[index], q1[index])
+        return self._cached(self.paths, keys, compute)
+
+    @staticmethod
+    def _cached(cache: _Cache, keys: list[bytes], compute) -> np.ndarray:
+        entries = cache.entries
+        found = [entries.get(key) for key in keys]
+        missing = [i for i, value in enumerate(found) if value is None]
+        if missing:
+            values = compute(np.array(missing)).tolist()
+            cache.make_room(len(missing))  # ``found`` keeps this call's hits
+            for i, value in zip(missing, values, strict=True):
+                found[i] = entries[keys[i]] = value
+        return np.array(found, dtype=bool)
+
+    # ------------------------------------------------------- the generators' predicates
+    def is_free(self, q: np.ndarray) -> np.ndarray:
+        """(M,) True where configuration ``q[i]`` is collision-free."""
+        return ~self.configurations_collide(q)
+
+    def is_path_free(self, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
+        """(M,) True where the path ``q0[i]`` → ``q1[i]`` is collision-free (one call)."""
+        return ~self.paths_collide(np.asarray(q0), np.asarray(q1))
+
+
+#: Rows of the value block of :func:`_price`; the flag block holds terminal, collision,
+#: invalid.
+_VALUES = ("reward", "travel", "time", *REWARD_TERMS)
+_FLAGS = ("terminal", "collision", "invalid")
+
+
+@njit(cache=True)
+def _price(origins, candidates, valid, waypoints, collision, free_start, n, weights, speeds,
+           travel_weight, time_weight, collision_penalty, invalid_penalty, terminate,
+           max_cost, values, flags):
+    """Every term of the moves from ``origins[w, r]`` to ``candidates[w, k]``, the
+    candidates of waypoint ``waypoints[w]`` (see :meth:`TaskMoves.terms`): ``values``
+    (len(_VALUES), W, R, K) and ``flags`` (3, W, R, K). Travel Σ_j w_j|Δq_j| is summed in
+    joint order, time is max_j |Δq_j|/v_j (NaN in, NaN out); the reward is the sum of its
+    terms in ``REWARD_TERMS`` order."""
+    count, rows, k = collision.shape
+    dof = origins.shape[2]
+    for w in range(count):
+        waypoint = waypoints[w]
+        still = free_start and waypoint == 0
+        for r in range(rows):
+            for b in range(k):
+                invalid = not valid[w, b]
+                travel = duration = 0.0
+                if not still:
+                    # An invalid branch stays where it is: no motion (NaN from no origin).
+                    unknown = False
+                    for j in range(dof):
+                        start = origins[w, r, j]
+                        step = abs((start if invalid else candidates[w, b, j]) - start)
+                        travel += step * weights[j]
+                        pace = step / speeds[j]
+                        if pace != pace:
+                            unknown = True
+                        elif j == 0 or pace > duration:
+                            duration = pace
+                    if unknown:
+                        duration = np.nan
+                hit = collision[w, r, b]
+                crashed = hit and terminate
+                skipped = n - waypoint if invalid else (n - 1 - waypoint if crashed else 0)
+                reward_travel = -travel_weight * travel
+                reward_time = -time_weight * duration
+                reward_collision = -collision_penalty if hit else 0.0
+                reward_invalid = -invalid_penalty if invalid else 0.0
+                reward_unfinished = float(-skipped) * max_cost if skipped > 0 else 0.0
+                values[0, w, r, b] = (reward_travel + reward_time + reward_collision
+                                      + reward_invalid + reward_unfinished)
+                values[1, w, r, b], values[2, w, r, b] = travel, duration
+                values[3, w, r, b], values[4, w, r, b] = reward_travel, reward_time
+                values[5, w, r, b], values[6, w, r, b] = reward_collision, reward_invalid
+                values[7, w, r, b] = reward_unfinished
+                flags[0, w, r, b] = invalid or crashed or waypoint == n - 1
+                flags[1, w, r, b], flags[2, w, r, b] = hit, invalid
+
+
+def _finite_rows(q, what: str) -> np.ndarray:
+    """``q`` as C-contiguous float64 rows (M, dof), ``ValueError`` if any value is NaN/inf."""
+    q = np.ascontiguousarray(q, dtype=np.float64)
+    if q.ndim != 2 or not np.isfinite(q).all():
+        raise ValueError(f"{what} must be finite rows (M, dof), got shape {q.shape}")
+    return q
+
+
+class TaskMoves:
+    """One task's ladder: waypoint i's candidates ``candidates[i]`` (K, dof) (NaN where
+    invalid), ``valid[i]``, ``endpoint_collision[i]``, and the price of every move.
+
+    Moves into waypoint 0 start at ``task.start`` (one origin row); moves into waypoint
+    i > 0 start at the K candidates of waypoint i − 1 (rows of invalid ones are NaN).
+    """
+
+    def __init__(self, pricer: MovePricer, task: Task, candidates: np.ndarray,
+                 valid: np.ndarray, endpoint_collision: np.ndarray) -> None:
+        self.pricer, self.task = pricer, task
+        self.candidates, self.valid = candidates, valid
+        self.endpoint_collision = endpoint_collision
+        self.n_waypoints = task.n_waypoints
+
+    def origins(self, waypoint: int) -> tuple[np.ndarray, np.ndarray]:
+        """Where the arm can stand before ``waypoint``: rows (R, dof) and which exist."""
+        waypoint = int(self._check_waypoint(waypoint))
+        if waypoint == 0:
+            return np.asarray(self.task.start, dtype=np.float64)[None], np.ones(1, dtype=bool)
+        return self.candidates[waypoint - 1], self.valid[waypoint - 1]
+
+    def motion(self, origins: np.ndarray, waypoint) -> tuple[np.ndarray, np.ndarray]:
+        """``travel`` and ``time`` (…, R, K) of the moves from ``origins`` (…, R, dof) to
+        every branch of ``waypoint`` (an int, or an array of the leading shape …);
+        invalid branches do not move, and at a free start (waypoint 0) nothing moves: the
+        first step only picks the branch the arm already stands in."""
+        values, _ = self._price(origins, waypoint, None)
+        return values[1], values[2]
+
+    def collisions(self, origins: np.ndarray, waypoint: int,
+                   branches: np.ndarray | None = None) -> np.ndarray:
+        """(R, K) bool: the move from each origin row (R, dof) to each branch of
+        ``waypoint`` collides (its path; at a free start the branch's own configuration).
+        Invalid branches, and pairs outside ``branches`` (R, K) bool when given, are
+        False. The paths go through one (cached) checker call."""
+        waypoint = self._check_waypoint(waypoint)
+        valid = self.valid[waypoint]
+        if len(origins) == 1 and branches is None:  # a step's moves: one row
+            out = np.zeros((1, len(valid)), dtype=bool)
+            if waypoint == 0 and self.task.free_start:
+                out[0] = self.endpoint_collision[0] & valid
+            elif valid.any():
+                out[0, valid] = self.pricer.paths_collide(origins[0], self.candidates[waypoint][
+                    valid])
+            return out
+        wanted = np.broadcast_to(valid, (len(origins), len(valid)))
+        if branches is not None:
+            wanted = wanted & branches
+        out = np.zeros(wanted.shape, dtype=bool)
+        if waypoint == 0 and self.task.free_start:
+            out[wanted] = np.broadcast_to(self.endpoint_collision[0], wanted.shape)[wanted]
+            return out
+        rows, columns = np.nonzero(wanted)
+        if len(rows) == 0:
+            return out
+        out[rows, columns] = self.pricer.paths_collide(origins[rows],
+                                                       self.candidates[waypoint][columns])
+        return out
+
+    def terms(self, origins: np.ndarray, waypoint,
+              collision: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """Every reward term (…, R, K) of the moves from ``origins`` (…, R, dof) into each
+        branch of ``waypoint`` (an int, or an array of the leading shape …), as ``step``
+        pays them, with ``reward`` their sum (in ``REWARD_TERMS`` order) and ``terminal``
+        whether the move ends the episode; also ``travel`` (rad-equivalents), ``time``
+        (s), ``collision`` and ``invalid``. ``collision`` (…, R, K) gives the collision
+        verdicts (a planner's optimistic or known ones); by default they are checked (an
+        int waypoint only). The one function that prices a move (:func:`_price`)."""
+        if collision is None:
+            collision = self.collisions(origins, waypoint)
+        values, flags = self._price(origins, waypoint, collision)
+        terms = dict(zip(_VALUES, values, strict=True))
+        terms.update(zip(_FLAGS, flags, strict=True))
+        return terms
+
+    def _price(self, origins: np.ndarray, waypoint, collision: np.ndarray | None):
+        """:func:`_price` on any leading shape: value and flag blocks (…, R, K) each."""
+        waypoint = self._check_waypoint(waypoint)
+        k, dof = self.valid.shape[1], self.candidates.shape[2]
+        if isinstance(waypoint, int):  # one waypoint, origins (R, dof): no broadcasting
+            flat = np.array([waypoint])
+            origins = np.ascontiguousarray(origins, dtype=np.float64)[None]
+            lead = ()
+        else:
+            waypoints = np.asarray(waypoint, dtype=np.int64)
+            lead, flat = waypoints.shape, waypoints.reshape(-1)
+            origins = np.ascontiguousarray(
+                np.broadcast_to(origins, (*lead, origins.shape[-2], dof)), dtype=np.float64
+            ).reshape(len(flat), -1, dof)
+        shape = (len(flat), origins.shape[1], k)
+        if collision is None:
+            collision = np.zeros(shape, dtype=np.bool_)
+        else:
+            collision = np.ascontiguousarray(np.broadcast_to(collision, (*lead, *shape[1:])),
+                                             dtype=np.bool_).reshape(shape)
+        values = np.empty((len(_VALUES), *shape))
+        flags = np.empty((len(_FLAGS), *shape), dtype=np.bool_)
+        pricer, cost = self.pricer, self.pricer.cost
+        _price(origins, self.candidates[flat], self.valid[flat], flat, collision,
+               self.task.free_start, self.n_waypoints, cost.weights, cost.speeds,
+               cost.travel_weight, cost.time_weight, pricer.collision_penalty,
+               pricer.invalid_penalty, pricer.terminate_on_collision,
+               pricer.max_transition_cost, values, flags)
+        out = (*lead, *shape[1:])
+        return values.reshape(len(_VALUES), *out), flags.reshape(len(_FLAGS), *out)
+
+    def edges(self, waypoint: int) -> tuple[np.ndarray, np.ndarray]:
+        """``reward`` (R, K) and ``terminal`` (R, K) of every move into ``waypoint`` from
+        every origin row, every path checked; rows of origins that do not exist are NaN
+        and terminal (``IKBranchEnv.edge_rewards``)."""
+        origins, usable = self.origins(waypoint)
+        k = self.valid.shape[1]
+        reward = np.full((len(origins), k), np.nan)
+        terminal = np.ones((len(origins), k), dtype=bool)
+        if usable.any():
+            terms = self.terms(origins[usable], waypoint)
+            reward[usable], terminal[usable] = terms["reward"], terms["terminal"]
+        return reward, terminal
+
+    def stacked_origins(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every waypoint's origin rows at once: (N, K, dof) and which exist (N, K); the
+        start is row 0 of waypoint 0 (its other rows do not exist)."""
+        n, k, dof = self.candidates.shape
+        origins = np.full((n, k, dof), np.nan)
+        usable = np.zeros((n, k), dtype=bool)
+        origins[0, 0], usable[0, 0] = self.task.start, True
+        origins[1:], usable[1:] = self.candidates[:-1], self.valid[:-1]
+        return origins, usable
+
+    def travel_from(self, q: np.ndarray, waypoint: int) -> np.ndarray:
+        """(K,) travel from configuration ``q`` to each branch of ``waypoint`` (NaN for
+        invalid branches; 0 at a free start): what the paper's rule compares."""
+        travel, _ = self.motion(np.asarray(q, dtype=np.float64)[None], waypoint)
+        return np.where(self.valid[waypoint], travel[0], np.nan)
+
+    def _check_waypoint(self, waypoint):
+        """``waypoint`` as an int (from any integer) or an integer array, ``ValueError``
+        outside [0, N)."""
+        if isinstance(waypoint, int | np.integer):
+            if not 0 <= waypoint < self.n_waypoints:
+                raise ValueError(f"waypoint must lie in [0, {self.n_waypoints})")
+            return int(waypoint)
+        values = np.asarray(waypoint)
+        if values.dtype.kind not in "iu" or (values.size and not (
+            0 <= values.min() and values.max() < self.n_waypoints
+        )):
+            raise ValueError(f"waypoint must lie in [0, {self.n_waypoints})")
+        return values

@@ -1,0 +1,103 @@
+"""Observation assembly: the flat ``Box(-1, 1)`` vector of ``IKBranchEnv`` and its layout.
+
+Contents (joint values normalised to [−1, 1] over their limits, travel to [0, 1] by the
+largest possible travel):
+
+- ``q``: the current configuration (dof); ``progress``: waypoints done / N.
+- For the next waypoint (slot 0) and each of ``lookahead`` later ones (slots 1…H):
+  ``present`` (1: the slot is within the task), ``candidates`` (K × dof, 0 where invalid),
+  ``valid`` (K), ``endpoint_collision`` (K).
+- Slot 0 also: ``travel`` (K) from the current configuration and ``path_collision`` (K)
+  along the path there. Slots h ≥ 1: ``travel`` (K × K) from every candidate of the
+  waypoint before.
+
+Everything a task fixes is assembled once per task (:meth:`ObservationBuilder.prepare`);
+each step fills in the configuration and slot 0's travel and path collisions.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from envs.kinematics import Arm
+from envs.moves import TaskMoves
+
+
+class ObservationBuilder:
+    """The layout and assembly of one env's observations (arm, lookahead, travel scale)."""
+
+    def __init__(self, arm: Arm, lookahead: int, travel_scale: float) -> None:
+        self.arm, self.lookahead, self.travel_scale = arm, lookahead, travel_scale
+        lower, upper = arm.joint_limits[:, 0], arm.joint_limits[:, 1]
+        self._centre, self._half_range = (upper + lower) / 2, (upper - lower) / 2
+        #: name -> (start, stop) of each slice of the observation vector.
+        self.layout = self._layout()
+        self.size = max(stop for _, stop in self.layout.values())
+        self._q = slice(*self.layout["q"])
+        self._travel0 = slice(*self.layout["slot0/travel"])
+        self._path0 = slice(*self.layout["slot0/path_collision"])
+        self._templates = np.zeros((1, self.size), dtype=np.float32)
+
+    def _layout(self) -> dict[str, tuple[int, int]]:
+        dof, k = self.arm.dof, self.arm.n_branches
+        sizes = [("q", dof), ("progress", 1)]
+        for h in range(self.lookahead + 1):
+            sizes += [(f"slot{h}/present", 1), (f"slot{h}/candidates", k * dof),
+                      (f"slot{h}/valid", k), (f"slot{h}/endpoint_collision", k)]
+            sizes += [("slot0/travel", k), ("slot0/path_collision", k)] if h == 0 else [
+                (f"slot{h}/travel", k * k)]
+        layout, start = {}, 0
+        for name, size in sizes:
+            layout[name] = (start, start + size)
+            start += size
+        return layout
+
+    def normalise(self, q: np.ndarray) -> np.ndarray:
+        return (q - self._centre) / self._half_range
+
+    def prepare(self, ladder: TaskMoves) -> None:
+        """Everything of the observation a task fixes: ``_templates[i]`` is the
+        observation at ``index == i`` (i = 0 … N) but for ``q`` and slot 0's ``travel``
+        and ``path_collision``, which :meth:`observe` fills in."""
+        n, k, dof = ladder.n_waypoints, self.arm.n_branches, self.arm.dof
+        valid = ladder.valid
+        # Per waypoint: present, candidates (invalid ones at the centre: 0), valid, endpoint.
+        candidates = np.where(valid[..., None], ladder.candidates, self._centre)
+        common = np.concatenate(
+            [np.ones((n, 1)), self.normalise(candidates).reshape(n, k * dof), valid,
+             ladder.endpoint_collision], axis=1,
+        )
+        width = common.shape[1]
+        templates = np.zeros((n + 1, self.size))
+        templates[:, slice(*self.layout["progress"])] = np.arange(n + 1)[:, None] / n
+        if self.lookahead and n > 1:
+            # travel[i - 1]: (K, K) from every candidate of waypoint i − 1 to every one of i.
+            both = valid[:-1, :, None] & valid[1:, None, :]
+            travel = np.ones((n - 1, k, k))
+            travel[both] = ladder.pricer.cost.travel(
+                ladder.candidates[:-1, :, None, :], ladder.candidates[1:, None, :, :]
+            )[both] / self.travel_scale
+            travel = travel.reshape(n - 1, k * k)
+        for h in range(min(self.lookahead, n - 1) + 1):
+            start = self.layout[f"slot{h}/present"][0]
+            rows = n - h  # indices 0 … n − h − 1 see waypoint index + h inside the task
+            templates[:rows, start : start + width] = common[h:]
+            if h:
+                templates[:rows, start + width : start + width + k * k] = travel[h - 1 :]
+        # Values sit inside [−1, 1] by construction; the clip only absorbs the 1e-9 slack
+        # with which a branch may lie on a joint limit.
+        self._templates = np.clip(templates, -1.0, 1.0).astype(np.float32)
+
+    def observe(self, index: int, q: np.ndarray, valid: np.ndarray | None,
+                moves: dict[str, np.ndarray] | None) -> np.ndarray:
+        """The observation at waypoint ``index`` with the arm at ``q``; ``moves`` are the
+        terms of every move into waypoint ``index`` (``valid`` its branches), None once the
+        episode is over."""
+        obs = self._templates[index].copy()
+        obs[self._q] = np.clip(self.normalise(q), -1.0, 1.0)
+        if moves is None:
+            return obs
+        travel = moves["travel"] / self.travel_scale  # invalid branches: travel 0
+        obs[self._travel0] = np.where(valid, np.minimum(travel, 1.0), 1.0)
+        obs[self._path0] = moves["collision"]
+        return obs
