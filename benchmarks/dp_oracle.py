@@ -3,26 +3,17 @@
     .venv/bin/python benchmarks/dp_oracle.py [--waypoints 1000] [--task tool_changes] [--seed 0]
 
 Default: the anthropomorphic arm in the milling cell (``IKBranch/ToolTransfer-v0``), 1,000
-tool-change waypoints, every edge (every K×K move, and the K first moves) priced by
-``env.edge_rewards`` with its path collision-checked. Tool-change poses repeat (3 rack
-slots and the spindle) and the env caches path checks per configuration pair, so only a
-few hundred edges are unique: *cold* is the first plan on a fresh env, *warm* a re-plan
-with the env's cache full. ``--task random`` draws 1,000 distinct poses in the same cell,
-where every edge is unique and must be checked (the ladder-graph planner's real job).
+tool-change waypoints. The oracle prices every edge's travel and time, and checks
+collisions lazily (``agents/dp.py``: only edges that can still lie on the best path).
+*Cold* is the first plan on a fresh env (empty move caches; numba's compile cache warm),
+*warm* a re-plan with the caches full. ``--task random`` draws distinct poses in the same
+cell, where no path repeats.
 
-Printed: cold and warm planning (all ``edge_rewards`` + the backward pass), the time in
-path checks, in the env's per-edge Python, and in the DP itself; then the same unique
-paths checked in one batched call (what an env that priced a waypoint's K×K edges in one
-``check_paths`` call would pay); then the episode replayed through ``step``, its return
-compared with the planned one.
-
-Recorded on the 2-core dev machine, quiet, after the tool-change task gained approach
-poses, grips and parked starts (1,000 waypoints: 63,944 edges, 1,928 unique paths): cold
-plan 4.31 s, of which path checks 3.92 s; warm plan 0.33 s (the env's per-edge Python);
-the DP backward pass 6.5 ms; replayed return = planned return exactly. The earlier
-two-pose task (392 unique paths) planned cold in 1.0–2.3 s under load. ``--task random``
-(50 waypoints, every edge unique) took 30 s cold, all path checks (~11 ms per path):
-1,000 such waypoints would take ~12 min.
+Printed: cold and warm planning, the time in path checks and in pricing + DP, how many
+edges were checked; the DP backward pass alone over fully priced edges
+(``ladder_q_tables``, the reference the lazy planner is tested equal to); every unique
+edge checked in one call, for scale (what pricing every edge would cost); then the
+episode replayed through ``step``, its return compared with the planned one.
 """
 
 from __future__ import annotations
@@ -55,18 +46,18 @@ class Stopwatch:
 def plan(env, label: str) -> DPOracle:
     """Plan once with a fresh oracle, timing the whole and the path checks inside it."""
     base = env.unwrapped
-    checks = Stopwatch(base.checker.check_paths)
-    base.checker.check_paths = checks  # instance attribute shadows the method: timing only
+    checks = Stopwatch(base.checker.rows_paths_collide)
+    base.checker.rows_paths_collide = checks  # an instance attribute shadows the method
     try:
         oracle = DPOracle(env)
         tick = time.perf_counter()
         oracle.on_episode()
         total = time.perf_counter() - tick
     finally:
-        del base.checker.check_paths
+        del base.checker.rows_paths_collide
     print(f"{label:<6} plan {total:7.3f} s   path checks {checks.seconds:7.3f} s "
-          f"({checks.calls} batched calls)   env per-edge Python and DP "
-          f"{total - checks.seconds:7.3f} s")
+          f"({checks.calls} batched calls, {oracle.lazy.checks} edges checked lazily)   "
+          f"pricing and DP {total - checks.seconds:7.3f} s")
     return oracle
 
 
@@ -86,13 +77,14 @@ def main() -> None:
           f"{k + (n - 1) * k * k} edges; env build + reset {time.perf_counter() - tick:.2f} s")
 
     oracle = plan(env, "cold")
-    unique = len(base.pricer.paths)
+    checked = len(base.pricer.paths)
     plan(env, "warm")
 
-    edges = [base.edge_rewards(i) for i in range(n)]
+    edges = [base.edge_rewards(i) for i in range(n)]  # every edge priced and checked
     tick = time.perf_counter()
     ladder_q_tables(edges, base.valid)
-    print(f"DP backward pass alone {1e3 * (time.perf_counter() - tick):.1f} ms")
+    print(f"DP backward pass alone (ladder_q_tables, every edge priced) "
+          f"{1e3 * (time.perf_counter() - tick):.1f} ms")
 
     # The same unique paths in one call: the floor an env pricing edges in bulk could reach.
     pairs: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
@@ -105,9 +97,9 @@ def main() -> None:
     q0s = np.array([p[0] for p in pairs.values()])
     q1s = np.array([p[1] for p in pairs.values()])
     tick = time.perf_counter()
-    base.checker.check_paths(q0s, q1s)
-    print(f"{len(pairs)} unique paths ({unique} in the env's cache) in one check_paths call: "
-          f"{time.perf_counter() - tick:.3f} s")
+    base.checker.paths_collide(q0s, q1s)
+    print(f"all {len(pairs)} unique paths in one paths_collide call: "
+          f"{time.perf_counter() - tick:.3f} s (the lazy cold plan checked {checked})")
 
     # The env still stands at the start of the planned task: replay the plan through step.
     paid, done, steps = 0.0, False, 0

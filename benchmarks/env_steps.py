@@ -1,21 +1,23 @@
 """Environment throughput: steps/s of every registered id, next to Gymnasium's Reacher-v5.
 
     MUJOCO_GL=egl .venv/bin/python benchmarks/env_steps.py [--seconds 3] [--ids ID ...]
+                                                           [--vector]
 
-Single process: random *masked* actions (uniform over ``action_masks()``), drawn from a
-seeded generator; ``Reacher-v5`` takes ``action_space.sample()``. After a warm-up (which
-fills the env's path-collision cache: ``--warmup`` seconds or steps, whichever ends
-first), the loop runs for ``--seconds``. Two numbers per id:
+Single process, random *masked* actions (uniform over ``action_masks()``) from a seeded
+generator; ``Reacher-v5`` takes ``action_space.sample()``. Resets are part of every loop.
+Columns per id:
 
-- ``step/s``: steps per second of time spent *inside* ``step()`` only;
-- ``step+reset/s``: steps per second of the whole loop, resets (and mask queries)
-  included: the throughput a learner sees. ``ms/reset`` is the mean reset time.
+- ``cold``: steps/s over the first ``--seconds`` of a fresh env (empty move caches, the
+  numba kernels already compiled on disk): what a new run sees first;
+- then, after a warm-up (``--warmup`` seconds or steps, whichever ends first, which fills
+  the caches of tasks with a finite pose set), ``in step``: steps per second of time
+  inside ``step()`` only; ``with resets``: steps per second of the whole loop, resets and
+  mask queries included (the throughput a learner sees); ``× Reacher``: that figure over
+  Reacher-v5's in the same run; ``ms/reset``; ``steps/episode``.
+- ``--vector``: ``gym.make_vec(id, num_envs=2, vectorization_mode="async")`` (two worker
+  processes), masks fetched every step as MaskablePPO does, steps counted per sub-env.
 
-Vector: ``gym.make_vec(id, num_envs=2, vectorization_mode="async")`` (two worker
-processes), masks fetched every step with ``envs.call("action_masks")`` as MaskablePPO
-does; steps counted per sub-env (2 per vector step), resets included (auto-reset).
-Numbers depend on the machine and its load; ToolTransfer's target is 5,000 steps/s on
-one core in steady state.
+Numbers depend on the machine and its load: compare rows of one run.
 """
 
 from __future__ import annotations
@@ -24,22 +26,14 @@ import argparse
 import os
 import time
 
-os.environ.setdefault("MUJOCO_GL", "egl")
-
 import gymnasium as gym
 import numpy as np
 
 import envs
-from envs.models import TREE_BUILDERS
 
 
-def _available(env_id: str) -> bool:
-    return env_id not in envs.ENV_SPECS or envs.ENV_SPECS[env_id]["arm"] in TREE_BUILDERS
-
-
-def single(env_id: str, seconds: float, warmup: float, warmup_steps: int) -> dict:
-    env = gym.make(env_id)
-    rng = np.random.default_rng(0)
+def _runner(env, seed: int):
+    rng = np.random.default_rng(seed)
     masked = hasattr(env.unwrapped, "action_masks")
 
     def action():
@@ -47,19 +41,14 @@ def single(env_id: str, seconds: float, warmup: float, warmup_steps: int) -> dic
             return int(rng.choice(np.flatnonzero(env.unwrapped.action_masks())))
         return env.action_space.sample()
 
-    env.reset(seed=0)
-    env.action_space.seed(0)
-    start = time.perf_counter()
-    for _ in range(warmup_steps):
-        _, _, terminated, truncated, _ = env.step(action())
-        if terminated or truncated:
-            env.reset()
-        if time.perf_counter() - start > warmup:
-            break
+    return action
+
+
+def _loop(env, action, seconds: float, max_steps: int | None = None) -> dict:
     steps = resets = 0
     in_step = in_reset = 0.0
     start = time.perf_counter()
-    while time.perf_counter() - start < seconds:
+    while time.perf_counter() - start < seconds and (max_steps is None or steps < max_steps):
         a = action()
         t0 = time.perf_counter()
         _, _, terminated, truncated, _ = env.step(a)
@@ -71,13 +60,24 @@ def single(env_id: str, seconds: float, warmup: float, warmup_steps: int) -> dic
             in_reset += time.perf_counter() - t1
             resets += 1
     total = time.perf_counter() - start
-    env.close()
     return {
-        "step/s": steps / in_step,
+        "step/s": steps / in_step if in_step else float("nan"),
         "step+reset/s": steps / total,
         "ms/reset": 1e3 * in_reset / max(resets, 1),
         "steps/episode": steps / max(resets, 1),
     }
+
+
+def single(env_id: str, seconds: float, warmup: float, warmup_steps: int) -> dict:
+    env = gym.make(env_id)
+    env.reset(seed=0)
+    env.action_space.seed(0)
+    action = _runner(env, 0)
+    cold = _loop(env, action, seconds)["step+reset/s"]
+    _loop(env, action, warmup, warmup_steps)
+    row = _loop(env, action, seconds)
+    env.close()
+    return {"cold": cold, **row}
 
 
 def vector(env_id: str, seconds: float, warmup: float) -> float:
@@ -111,27 +111,30 @@ def main() -> None:
         description=__doc__, formatter_class=argparse.RawTextHelpFormatter
     )
     parser.add_argument("--seconds", type=float, default=3.0, help="timed loop per case")
-    parser.add_argument("--warmup", type=float, default=20.0, help="warm-up limit, seconds")
+    parser.add_argument("--warmup", type=float, default=10.0, help="warm-up limit, seconds")
     parser.add_argument("--warmup-steps", type=int, default=20000, help="warm-up limit, steps")
-    parser.add_argument("--no-vector", action="store_true", help="skip the make_vec column")
-    parser.add_argument("--ids", nargs="*", default=None, help="ids (default: all + Reacher-v5)")
+    parser.add_argument("--vector", action="store_true", help="add the make_vec column")
+    parser.add_argument("--ids", nargs="*", default=None, help="ids (default: all)")
     args = parser.parse_args()
-    ids = args.ids or [*envs.ENV_IDS, "Reacher-v5"]
+    ids = args.ids or list(envs.ENV_IDS)
 
-    print(f"{os.cpu_count()} CPUs; timed {args.seconds:g} s per case after warm-up "
-          f"(≤ {args.warmup:g} s / {args.warmup_steps} steps)\n")
-    print("| id | step/s (in step) | step+reset/s | ms/reset | steps/episode "
-          "| make_vec async ×2, steps/s |")
-    print("|---|---:|---:|---:|---:|---:|")
-    for env_id in ids:
-        if not _available(env_id):
-            print(f"| {env_id} | n/a: no MuJoCo model for its arm yet | | | | |")
-            continue
-        row = single(env_id, args.seconds, args.warmup, args.warmup_steps)
-        # The same warm-up as the single case: the workers' path caches start cold too.
-        vec = "—" if args.no_vector else f"{vector(env_id, args.seconds, args.warmup):,.0f}"
-        print(f"| {env_id} | {row['step/s']:,.0f} | {row['step+reset/s']:,.0f} "
-              f"| {row['ms/reset']:.2f} | {row['steps/episode']:.1f} | {vec} |", flush=True)
+    print(f"{os.cpu_count()} CPUs; {args.seconds:g} s per column, warm-up ≤ {args.warmup:g} s "
+          f"/ {args.warmup_steps} steps\n")
+    reacher = single("Reacher-v5", args.seconds, args.warmup, args.warmup_steps)
+    header = ("| id | cold, with resets | in step | with resets | × Reacher | ms/reset "
+              "| steps/episode |")
+    print(header + (" make_vec async ×2 |" if args.vector else ""))
+    print("|---|---:|---:|---:|---:|---:|---:|" + ("---:|" if args.vector else ""))
+    for env_id in [*ids, "Reacher-v5"]:
+        row = reacher if env_id == "Reacher-v5" else single(
+            env_id, args.seconds, args.warmup, args.warmup_steps)
+        ratio = row["step+reset/s"] / reacher["step+reset/s"]
+        line = (f"| {env_id} | {row['cold']:,.0f} | {row['step/s']:,.0f} "
+                f"| {row['step+reset/s']:,.0f} | {ratio:.2f} | {row['ms/reset']:.2f} "
+                f"| {row['steps/episode']:.1f} |")
+        if args.vector:
+            line += f" {vector(env_id, args.seconds, args.warmup):,.0f} |"
+        print(line, flush=True)
 
 
 if __name__ == "__main__":

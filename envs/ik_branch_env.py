@@ -44,8 +44,9 @@ class IKBranchEnv(gym.Env):
     ## Observation space
     One flat ``Box(-1, 1, float32)``: every SB3 algorithm's default MLP policy (PPO,
     MaskablePPO) takes it as is and vector envs copy one contiguous array;
-    ``observation_layout`` names each slice. Contents (joint values are normalised to
-    [−1, 1] over their limits, travel to [0, 1] by the largest possible travel):
+    ``observation_layout`` names each slice (assembled by ``envs.observations``). Contents
+    (joint values are normalised to [−1, 1] over their limits, travel to [0, 1] by the
+    largest possible travel):
 
     - ``q``: the current configuration (dof); ``progress``: waypoints done / N.
     - For the next waypoint (slot 0) and each of ``lookahead`` later ones (slots 1…H):
@@ -54,8 +55,8 @@ class IKBranchEnv(gym.Env):
       touches something).
     - Slot 0 also: ``travel`` (K) from the current configuration and ``path_collision`` (K)
       along the path there. Slots h ≥ 1: ``travel`` (K × K) from every candidate of the
-      waypoint before. Path checks cost ~10³ configuration checks each, so the lookahead
-      sees endpoint collisions only; the DP oracle baseline sees every path.
+      waypoint before. The lookahead shows endpoint collisions only; the DP oracle
+      baseline sees every path.
 
     ## Rewards
     Per step, with every weight a constructor argument:
@@ -70,7 +71,9 @@ class IKBranchEnv(gym.Env):
     finishing, and with ``invalid_penalty ≥ collision_penalty`` an invalid branch is never
     cheaper than any valid one. ``info`` carries each term and the raw ``travel``
     (rad-equivalents) and ``time`` (s); the reward is exactly their sum.
-    ``edge_rewards(i)`` gives the same prices for every move into waypoint i, for planners.
+    ``edge_rewards(i)`` gives the same prices for every move into waypoint i, for planners;
+    all of them come from ``envs.moves`` (``env.pricer``, ``env.ladder``), which planners
+    and baselines share.
 
     ## Starting state
     ``reset`` draws a task from the env's ``np_random`` (seed it with ``reset(seed=…)``);
@@ -111,6 +114,10 @@ class IKBranchEnv(gym.Env):
     ===================== ======================= ===========================================
 
     ## Version history
+    - Same ids, same behaviour (session 3): collision checks run through a compiled
+      filter that decides exactly as before (``envs/models/compiled.py``), and the sample
+      grid of a path is summed in joint order for every backend; the published results
+      re-evaluate unchanged.
     - v1 (the random-waypoint ids: Cartesian, Cylindrical, Spherical, Anthropomorphic,
       Cylindrical4, RodMechanism): the ``random`` task guarantees a collision-free solution
       (the straight path between consecutive generating configurations is checked); v0
@@ -296,7 +303,7 @@ class IKBranchEnv(gym.Env):
         if branch != action or not 0 <= branch < self.arm.n_branches:
             raise ValueError(f"action must be a branch index in [0, {self.arm.n_branches})")
         waypoint = self.index
-        terms = {name: value[branch].item() for name, value in self._moves().items()}
+        terms = {name: value[branch] for name, value in self._moves().items()}
         reward = terms.pop("reward")
         terminated = terms.pop("terminal")
         if not terms["invalid"]:
@@ -333,7 +340,8 @@ class IKBranchEnv(gym.Env):
         key = (self.index, self.q.tobytes())
         if self._moves_key != key:
             terms = self.ladder.terms(self.q[None], self.index)
-            self._moves_cache = {name: value[0] for name, value in terms.items()}
+            # Python floats and bools per branch: ``step`` hands them out as they are.
+            self._moves_cache = {name: value[0].tolist() for name, value in terms.items()}
             self._moves_key = key
         return self._moves_cache
 

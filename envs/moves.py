@@ -257,6 +257,7 @@ class TaskMoves:
         self.candidates, self.valid = candidates, valid
         self.endpoint_collision = endpoint_collision
         self.n_waypoints = task.n_waypoints
+        self._waypoints = np.arange(self.n_waypoints)
 
     def origins(self, waypoint: int) -> tuple[np.ndarray, np.ndarray]:
         """Where the arm can stand before ``waypoint``: rows (R, dof) and which exist."""
@@ -323,17 +324,18 @@ class TaskMoves:
         """:func:`_price` on any leading shape: value and flag blocks (…, R, K) each."""
         waypoint = self._check_waypoint(waypoint)
         k, dof = self.valid.shape[1], self.candidates.shape[2]
-        if isinstance(waypoint, int):  # one waypoint, origins (R, dof): no broadcasting
-            flat = np.array([waypoint])
+        if isinstance(waypoint, int):  # one waypoint, origins (R, dof): views, no copies
+            flat = slice(waypoint, waypoint + 1)
             origins = np.ascontiguousarray(origins, dtype=np.float64)[None]
-            lead = ()
+            lead, count = (), 1
         else:
             waypoints = np.asarray(waypoint, dtype=np.int64)
             lead, flat = waypoints.shape, waypoints.reshape(-1)
+            count = len(flat)
             origins = np.ascontiguousarray(
                 np.broadcast_to(origins, (*lead, origins.shape[-2], dof)), dtype=np.float64
-            ).reshape(len(flat), -1, dof)
-        shape = (len(flat), origins.shape[1], k)
+            ).reshape(count, -1, dof)
+        shape = (count, origins.shape[1], k)
         if collision is None:
             collision = np.zeros(shape, dtype=np.bool_)
         else:
@@ -342,7 +344,7 @@ class TaskMoves:
         values = np.empty((len(_VALUES), *shape))
         flags = np.empty((len(_FLAGS), *shape), dtype=np.bool_)
         pricer, cost = self.pricer, self.pricer.cost
-        _price(origins, self.candidates[flat], self.valid[flat], flat, collision,
+        _price(origins, self.candidates[flat], self.valid[flat], self._waypoints[flat], collision,
                self.task.free_start, self.n_waypoints, cost.weights, cost.speeds,
                cost.travel_weight, cost.time_weight, pricer.collision_penalty,
                pricer.invalid_penalty, pricer.terminate_on_collision,

@@ -89,7 +89,7 @@ class ObservationBuilder:
         self._templates = np.clip(templates, -1.0, 1.0).astype(np.float32)
 
     def observe(self, index: int, q: np.ndarray, valid: np.ndarray | None,
-                moves: dict[str, np.ndarray] | None) -> np.ndarray:
+                moves: dict | None) -> np.ndarray:
         """The observation at waypoint ``index`` with the arm at ``q``; ``moves`` are the
         terms of every move into waypoint ``index`` (``valid`` its branches), None once the
         episode is over."""
@@ -97,7 +97,7 @@ class ObservationBuilder:
         obs[self._q] = np.clip(self.normalise(q), -1.0, 1.0)
         if moves is None:
             return obs
-        travel = moves["travel"] / self.travel_scale  # invalid branches: travel 0
+        travel = np.asarray(moves["travel"]) / self.travel_scale  # invalid branches: 0
         obs[self._travel0] = np.where(valid, np.minimum(travel, 1.0), 1.0)
         obs[self._path0] = moves["collision"]
         return obs

@@ -55,17 +55,24 @@ the body-level midphase dropped a gripper–floor pair 6 mm apart when the margi
 on the compiled model, so the checker disables the midphase (moving bodies carry ≤ 3
 collision geoms).
 
-Backends (identical results, see ``benchmarks/collision_throughput.py``):
-
+Backends (identical results: tested equal, and asserted by the benchmark)
+------------------------------------------------------------------------
+``"compiled"`` (the default; ``"auto"`` picks it) the filter of :mod:`envs.models.compiled`:
+             numba kernels bound every candidate pair from geometry read off the model and
+             prove most samples free; every other sample goes to ``mj_kinematics`` +
+             ``mj_collision``, called from the kernel. Same verdicts and first colliding
+             samples as the loop, several tens of times faster on paths. Verdict-only
+             calls (:meth:`CollisionChecker.paths_collide`) stop at any contact.
+``"loop"``   ``mj_kinematics`` + ``mj_collision`` on one reused ``MjData``; path checks
+             advance conservatively (above) and stop at each path's first contact. The
+             exact reference the compiled backend is tested against.
 ``"batch"``  ``mujoco.batch.Batch``: C thread pool, GIL released, every grid sample. Its
              finest stage, ``mjSTAGE_POS``, also computes inertia, its factorisation and
              the contact constraints, ~1.3× the work of kinematics + collision per
-             configuration, so it only pays off with several free cores.
-``"loop"``   ``mj_kinematics`` + ``mj_collision`` on one reused ``MjData``; path checks
-             advance conservatively (above) and stop at each path's first contact.
-``"auto"``   (default) ``"batch"`` when at least 4 threads are available, else ``"loop"``:
-             on the 2-CPU development machine the loop was faster (docs/models.md).
+             configuration.
 
+The grid is one definition for every backend: n = max(⌈D/δ − 10⁻¹²⌉, 1) with D summed in
+joint order (``compiled.path_steps``), so a path has the same samples alone or in a batch.
 Contacts of a colliding sample are read back with the loop's ``MjData``. The checker holds
 private copies of the model (with the margins), their ``MjData`` and the lazily built
 batch; results depend only on the inputs.

@@ -93,9 +93,16 @@ class CompiledScene:
     slot_radius: np.ndarray
     pair_a: np.ndarray
     pair_b: np.ndarray
+    pair_kind: np.ndarray
+    pair_fixed: np.ndarray
+    slot_pairs: np.ndarray
     pair_margin: np.ndarray
     pair_lever: np.ndarray
     pair_reach: np.ndarray
+    slot_lever: np.ndarray
+    slot_moved: np.ndarray
+    jnt_body: np.ndarray
+    jnt_down: np.ndarray
 
     @property
     def tree(self) -> tuple:
@@ -106,11 +113,18 @@ class CompiledScene:
                 self.body_xpos, self.body_xmat)
 
     @property
+    def motion(self) -> tuple:
+        """What the local (configuration-dependent) speed bound needs: per slot its lever
+        arms and the joints that move it, per joint its body and the joints after it."""
+        return self.slot_lever, self.slot_moved, self.jnt_body, self.jnt_down
+
+    @property
     def geometry(self) -> tuple:
         """Slots and pairs as the kernels take them."""
         return (self.slot_body, self.slot_static, self.slot_pos, self.slot_rot,
                 self.slot_type, self.slot_size, self.slot_radius, self.pair_a, self.pair_b,
-                self.pair_margin, self.pair_lever, self.pair_reach)
+                self.pair_margin, self.pair_lever, self.pair_reach, self.pair_kind,
+                self.pair_fixed, self.slot_pairs)
 
 
 # ------------------------------------------------------------------------------ geometry
@@ -234,6 +248,20 @@ def _moved_by(model: mujoco.MjModel, body: int) -> np.ndarray:
     return moved
 
 
+def _joints_after(model: mujoco.MjModel) -> np.ndarray:
+    """(njnt, njnt) bool: joint i acts after joint j on the way out to the tips (a later
+    joint of j's body, or a joint of a body below it): what moves points relative to j's
+    axis."""
+    after = np.zeros((model.njnt, model.njnt), dtype=bool)
+    for i in range(model.njnt):
+        body = int(model.jnt_bodyid[i])
+        for j in range(model.njnt):
+            owner = int(model.jnt_bodyid[j])
+            after[j, i] = (owner == body and i > j) or (
+                owner != body and owner in _ancestors(model, body))
+    return after
+
+
 def compile_scene(model: mujoco.MjModel, dof: int, pairs: np.ndarray) -> CompiledScene:
     """The flat arrays of ``model`` (margins as set on it) for the geom ``pairs`` (P, 2)
     that ``mj_collision`` may test. ``ValueError`` for what the filter cannot bound
@@ -273,20 +301,27 @@ def compile_scene(model: mujoco.MjModel, dof: int, pairs: np.ndarray) -> Compile
                             radius if np.isfinite(radius) else 0.0, dof)
         moved[s] = _moved_by(model, int(slot_body[s]))
 
-    pair_a, pair_b = np.zeros(len(pairs), dtype=np.int64), np.zeros(len(pairs), dtype=np.int64)
-    pair_lever = np.zeros((len(pairs), model.njnt))
-    for k, (g1, g2) in enumerate(pairs.tolist()):
-        a, b = slot_of[int(g1)], slot_of[int(g2)]
-        if slot_static[a]:
-            a, b = b, a
-        pair_a[k], pair_b[k] = a, b
+    # Pairs grouped by their moving slot a (the kernel loads a's frame once per group), a
+    # static solid partner first, then a plane, then a moving one: (a, kind) order.
+    ends = [(slot_of[int(g1)], slot_of[int(g2)]) for g1, g2 in pairs.tolist()]
+    ends = [(b, a) if slot_static[a] else (a, b) for a, b in ends]
+    kinds = [2 if not slot_static[b] else (1 if slot_type[b] == PLANE else 0) for _, b in ends]
+    order = sorted(range(len(ends)), key=lambda k: (ends[k][0], kinds[k]))
+    pair_a = np.array([ends[k][0] for k in order], dtype=np.int64)
+    pair_b = np.array([ends[k][1] for k in order], dtype=np.int64)
+    pair_kind = np.array([kinds[k] for k in order], dtype=np.int64)
+    margin = (model.geom_margin[pairs].sum(axis=1)[order] if len(pairs) else np.zeros(0))
+    pair_lever = np.zeros((len(pair_a), model.njnt))
+    pair_fixed = np.zeros((len(pair_a), 6))  # a static partner's centre (and plane normal)
+    for k, (a, b) in enumerate(zip(pair_a, pair_b, strict=True)):
         if slot_static[b]:
             pair_lever[k] = levers[a]
+            pair_fixed[k, :3], pair_fixed[k, 3:] = slot_pos[b], slot_rot[b][:, 2]
         else:  # joints that move both turn the pair rigidly together and drop out
             only_a, only_b = moved[a] & ~moved[b], moved[b] & ~moved[a]
             pair_lever[k] = np.where(only_a, levers[a], 0.0) + np.where(only_b, levers[b], 0.0)
     pair_lever[:, dof:] = 0.0
-    margin = model.geom_margin[pairs].sum(axis=1) if len(pairs) else np.zeros(0)
+    slot_pairs = np.searchsorted(pair_a, np.arange(n_slots + 1)).astype(np.int64)
     body_rot = np.array([_quat_to_mat(q) for q in model.body_quat])
     body_flags = np.where(static_body, 1, 0) | np.where(
         np.all(body_rot == np.eye(3), axis=(1, 2)), 2, 0)
@@ -320,12 +355,19 @@ def compile_scene(model: mujoco.MjModel, dof: int, pairs: np.ndarray) -> Compile
         slot_radius=slot_radius,
         pair_a=pair_a,
         pair_b=pair_b,
+        pair_kind=pair_kind,
+        pair_fixed=pair_fixed,
+        slot_pairs=slot_pairs,
         pair_margin=margin + DISTANCE_TOLERANCE,
         pair_lever=pair_lever,
         # Bounding radii plus margin: a plane (always ``b``) adds no radius.
         pair_reach=(slot_radius[pair_a] + np.where(slot_type[pair_b] == PLANE, 0.0,
                                                    slot_radius[pair_b])
                     + margin + DISTANCE_TOLERANCE),
+        slot_lever=np.where(np.arange(model.njnt) < dof, levers, 0.0),
+        slot_moved=moved & (np.arange(model.njnt) < dof),
+        jnt_body=model.jnt_bodyid.astype(np.int64),
+        jnt_down=_joints_after(model),
     )
 
 
@@ -621,7 +663,7 @@ def _turn(m00, m01, m02, m10, m11, m12, m20, m21, m22, axis, c, s):
             m20 * r02 + m21 * r12 + m22 * r22)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _forward(body_parent, body_pos, body_rot, body_jntadr, body_jntnum, body_flags,
              jnt_type, jnt_qposadr, jnt_pos, jnt_axis, jnt_axis_code, qpos0, qpos, xpos,
              xmat):
@@ -702,7 +744,7 @@ def _forward(body_parent, body_pos, body_rot, body_jntadr, body_jntnum, body_fla
         xmat[b, 2, 0], xmat[b, 2, 1], xmat[b, 2, 2] = m20, m21, m22
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _place_slots(slot_body, slot_static, slot_pos, slot_rot, xpos, xmat, wpos, wrot):
     """World frames of the moving slots' containers (static slots were placed once)."""
     for s in range(len(slot_body)):
@@ -725,62 +767,109 @@ def _place_slots(slot_body, slot_static, slot_pos, slot_rot, xpos, xmat, wpos, w
 
 
 # ------------------------------------------------------------------- samples and paths
-@njit(cache=True)
-def _sample_step(tree, geometry, qpos, xpos, xmat, wpos, wrot, rates, coarse, cap, counters):
+@njit(cache=True, inline="always")
+def _local_speed(a, motion, xpos, xmat, jnt_pos, jnt_axis, jnt_type, wpos, radius, dq):
+    """V0: a bound on the speed of any point of slot ``a``'s bounding sphere at this
+    sample, per unit path parameter, from the actual distances of its centre to the hinge
+    axes that move it (plus the sphere's radius), slides at full speed."""
+    slot_moved, jnt_body = motion[1], motion[2]
+    speed = 0.0
+    for j in range(len(jnt_body)):
+        if not slot_moved[a, j] or dq[j] == 0.0:
+            continue
+        if jnt_type[j] == _SLIDE:
+            speed += dq[j]
+            continue
+        b = jnt_body[j]
+        # The hinge's anchor and axis in the world (a turn about it leaves both in place).
+        px, py, pz = jnt_pos[j, 0], jnt_pos[j, 1], jnt_pos[j, 2]
+        ax, ay, az = jnt_axis[j, 0], jnt_axis[j, 1], jnt_axis[j, 2]
+        d = np.empty(3)
+        u = np.empty(3)
+        for i in range(3):
+            d[i] = wpos[a, i] - (xpos[b, i] + xmat[b, i, 0] * px + xmat[b, i, 1] * py
+                                 + xmat[b, i, 2] * pz)
+            u[i] = xmat[b, i, 0] * ax + xmat[b, i, 1] * ay + xmat[b, i, 2] * az
+        c0, c1, c2 = d[1] * u[2] - d[2] * u[1], d[2] * u[0] - d[0] * u[2], d[0] * u[1] - d[1] * u[0]
+        speed += dq[j] * (math.sqrt(c0 * c0 + c1 * c1 + c2 * c2) + radius)
+    return speed
+
+
+@njit(cache=True, inline="always")
+def _sample_step(tree, geometry, qpos, xpos, xmat, wpos, wrot, rates, coarse, cap, counters,
+                 motion, local):
     """The free step around the sample ``qpos``: the largest s ≤ ``cap`` (in path
     parameter t) such that every pair stays farther than its margin for |t − t_i| ≤ s, from
     lower bounds only; −1 if some pair may be within its margin (MuJoCo must decide).
 
     Bounding spheres first (``coarse``: their step per pair); exact container bounds only
     for pairs whose sphere step is below the best step found so far, the nearest first.
+    A static pair's step is the larger of two valid ones: at the global rate (lever arms
+    over all configurations), and, with ``local`` = (dq, growth, speeds), from the
+    configuration itself: a moving slot's points move at most V0 + W·|t − t_i| per unit t
+    (V0 from its actual distances to the hinge axes, W how fast later joints can change
+    those), so within s they cover at most V0·s + W·s²/2. ``local`` None: configurations
+    only (no step needed beyond 0).
     """
     (body_parent, body_pos, body_rot, body_jntadr, body_jntnum, body_flags, jnt_type,
      jnt_qposadr, jnt_pos, jnt_axis, jnt_axis_code, qpos0) = tree
     (slot_body, slot_static, slot_pos, slot_rot, slot_type, slot_size, slot_radius,
-     pair_a, pair_b, pair_margin, _, pair_reach) = geometry
+     pair_a, pair_b, pair_margin, _, pair_reach, pair_kind, pair_fixed, slot_pairs) = geometry
     _forward(body_parent, body_pos, body_rot, body_jntadr, body_jntnum, body_flags,
              jnt_type, jnt_qposadr, jnt_pos, jnt_axis, jnt_axis_code, qpos0, qpos, xpos,
              xmat)
     _place_slots(slot_body, slot_static, slot_pos, slot_rot, xpos, xmat, wpos, wrot)
-    nearest, nearest_step = -1, math.inf
-    for k in range(len(pair_a)):
-        a, b = pair_a[k], pair_b[k]
-        # Bounding spheres (a half-space for a plane) farther apart than the pair can
-        # close within ``cap`` cannot limit the step: no sqrt, no division for them.
-        reach = pair_reach[k]
-        limit = reach + rates[k] * cap
-        if slot_type[b] == PLANE:
-            height = (wrot[b, 0, 2] * (wpos[a, 0] - wpos[b, 0])
-                      + wrot[b, 1, 2] * (wpos[a, 1] - wpos[b, 1])
-                      + wrot[b, 2, 2] * (wpos[a, 2] - wpos[b, 2]))
-            if height >= limit:
-                coarse[k] = cap
-                continue
-            gap = height - reach
-        else:
-            dx, dy, dz = wpos[a, 0] - wpos[b, 0], wpos[a, 1] - wpos[b, 1], wpos[a, 2] - wpos[b, 2]
-            squared = dx * dx + dy * dy + dz * dz
-            if squared >= limit * limit:
-                coarse[k] = cap
-                continue
-            gap = math.sqrt(squared) - reach
-        if gap > 0.0:
-            step = gap / rates[k] if rates[k] > 0.0 else math.inf
-        else:
-            step = -1.0
-        coarse[k] = step
-        if step < nearest_step:
-            nearest, nearest_step = k, step
+    if local is not None:
+        local[2][:] = -1.0  # per-slot V0, computed when a pair needs it
+    # Bounding spheres (a half-space for a plane) farther apart than the pair can close
+    # within ``cap`` cannot limit the step: no sqrt, no division for them. The others are
+    # kept, with their sphere step, in ``coarse`` (pair, step) rows.
+    survivors, nearest, nearest_step = 0, -1, math.inf
+    for a in range(len(slot_body)):
+        first, stop = slot_pairs[a], slot_pairs[a + 1]
+        if first == stop:
+            continue
+        ax, ay, az = wpos[a, 0], wpos[a, 1], wpos[a, 2]
+        for k in range(first, stop):
+            reach = pair_reach[k]
+            limit = reach + rates[k] * cap
+            kind = pair_kind[k]
+            if kind == 1:
+                height = (pair_fixed[k, 3] * (ax - pair_fixed[k, 0])
+                          + pair_fixed[k, 4] * (ay - pair_fixed[k, 1])
+                          + pair_fixed[k, 5] * (az - pair_fixed[k, 2]))
+                if height >= limit:
+                    continue
+                gap = height - reach
+            else:
+                if kind == 0:
+                    dx, dy, dz = ax - pair_fixed[k, 0], ay - pair_fixed[k, 1], az - pair_fixed[k, 2]
+                else:
+                    b = pair_b[k]
+                    dx, dy, dz = ax - wpos[b, 0], ay - wpos[b, 1], az - wpos[b, 2]
+                squared = dx * dx + dy * dy + dz * dz
+                if squared >= limit * limit:
+                    continue
+                gap = math.sqrt(squared) - reach
+            if gap > 0.0:
+                step = gap / rates[k] if rates[k] > 0.0 else math.inf
+            else:
+                step = -1.0
+            coarse[survivors, 0], coarse[survivors, 1] = k, step
+            if step < nearest_step:
+                nearest, nearest_step = survivors, step
+            survivors += 1
     best = cap
     if nearest_step >= best:
         return best
     # Finer bounds, the nearest pair first (it usually sets ``best``), then every pair whose
     # coarser bound could still limit the step: a's bounding sphere against a static b's
     # container, then the two containers.
-    for visit in range(-1, len(pair_a)):
-        k = nearest if visit < 0 else visit
-        if (visit >= 0 and k == nearest) or coarse[k] >= best:
+    for visit in range(-1, survivors):
+        row = nearest if visit < 0 else visit
+        if (visit >= 0 and row == nearest) or coarse[row, 1] >= best:
             continue
+        k = int(coarse[row, 0])
         a, b = pair_a[k], pair_b[k]
         ca, cb, rb, sb = _centre(wpos, a), _centre(wpos, b), _rotation(wrot, b), _size(slot_size, b)
         sphere = -math.inf
@@ -796,6 +885,15 @@ def _sample_step(tree, geometry, qpos, xpos, xmat, wpos, wrot, rates, coarse, ca
         if not gap > 0.0:
             return -1.0
         step = gap / rates[k] if rates[k] > 0.0 else math.inf
+        if local is not None and slot_static[b] and step < best:
+            dq, growth, speeds = local
+            if speeds[a] < 0.0:
+                speeds[a] = _local_speed(a, motion, xpos, xmat, jnt_pos, jnt_axis, jnt_type,
+                                         wpos, slot_radius[a], dq)
+            v0, w = speeds[a], growth[a]
+            root = math.sqrt(v0 * v0 + 2.0 * w * gap)
+            if v0 + root > 0.0:
+                step = max(step, 2.0 * gap / (v0 + root))
         if step < best:
             best = step
     return best
@@ -836,7 +934,7 @@ def _work(tree, geometry):
     body_xpos, body_xmat = tree[-2], tree[-1]
     slot_pos, slot_rot, pair_a = geometry[2], geometry[3], geometry[7]
     return (body_xpos.copy(), body_xmat.copy(), slot_pos.copy(), slot_rot.copy(),
-            np.ones(len(pair_a)), np.empty(len(pair_a)))
+            np.ones(len(pair_a)), np.empty((len(pair_a), 2)))
 
 
 @njit(cache=True)
@@ -862,7 +960,7 @@ def path_steps(start_rows, end_rows, lever, resolution, out):
 
 
 @njit(cache=True)
-def check_configurations(tree, geometry, exact, rows, out, counters):
+def check_configurations(tree, geometry, motion, exact, rows, out, counters):
     """``out[i]``: MuJoCo's contact count at configuration ``rows[i]`` (its leading qpos
     entries; the rest stay at ``qpos0``): 0 where the bounds prove it free, MuJoCo's own
     count elsewhere. ``counters`` (3,): samples bounded, MuJoCo checks and exact pair
@@ -875,7 +973,7 @@ def check_configurations(tree, geometry, exact, rows, out, counters):
         _fill_qpos(qpos, qpos0, rows[i])
         counters[0] += 1
         step = _sample_step(kinematic, geometry, qpos, xpos, xmat, wpos, wrot, rates, coarse,
-                            0.0, counters)
+                            0.0, counters, motion, None)
         if step >= 0.0:
             out[i] = 0
         else:
@@ -884,7 +982,8 @@ def check_configurations(tree, geometry, exact, rows, out, counters):
 
 
 @njit(cache=True)
-def check_paths(tree, geometry, exact, start_rows, end_rows, steps, first, out, counters):
+def check_paths(tree, geometry, motion, exact, start_rows, end_rows, steps, first, out,
+                counters):
     """``out[m]``: a grid index i of path m (q(t) = q0 + (i/n)(q1 − q0), n = ``steps[m]``;
     leading qpos entries, the rest at ``qpos0``) whose sample MuJoCo finds in contact, −1
     if none has one. With ``first`` it is the lowest such index; otherwise the first one
@@ -900,6 +999,10 @@ def check_paths(tree, geometry, exact, start_rows, end_rows, steps, first, out, 
     npair, nq = pair_lever.shape
     dof = end_rows.shape[1]
     delta, qpos, start = np.zeros(nq), np.empty(nq), np.empty(nq)
+    slot_lever, slot_moved, _, jnt_down = motion
+    jnt_type = tree[6]
+    dq, growth, speeds = np.zeros(nq), np.zeros(len(slot_lever)), np.empty(len(slot_lever))
+    local = (dq, growth, speeds)
     size = 2
     for m in range(len(steps)):
         size = max(size, steps[m] + 2)
@@ -914,6 +1017,18 @@ def check_paths(tree, geometry, exact, start_rows, end_rows, steps, first, out, 
             for j in range(dof):
                 rate += pair_lever[k, j] * abs(delta[j])
             rates[k] = rate
+        for j in range(nq):
+            dq[j] = abs(delta[j])
+        for a in range(len(growth)):  # W: how fast later joints can change axis distances
+            total = 0.0
+            for j in range(dof):
+                if slot_moved[a, j] and jnt_type[j] != _SLIDE and dq[j] > 0.0:
+                    later = 0.0
+                    for i in range(dof):
+                        if jnt_down[j, i] and slot_moved[a, i]:
+                            later += slot_lever[a, i] * dq[i]
+                    total += dq[j] * later
+            growth[a] = total
         found = n + 1
         head, tail = 0, 1  # circular queue of intervals [lo, hi]
         queue_lo[0], queue_hi[0] = 0, n
@@ -930,7 +1045,7 @@ def check_paths(tree, geometry, exact, start_rows, end_rows, steps, first, out, 
                 qpos[j] = start[j] + fraction * delta[j] if j < dof else start[j]
             counters[0] += 1
             step = _sample_step(kinematic, geometry, qpos, xpos, xmat, wpos, wrot, rates,
-                                coarse, max(mid - lo, hi - mid) / n, counters)
+                                coarse, max(mid - lo, hi - mid) / n, counters, motion, local)
             reach = 0
             if step < 0.0:
                 counters[1] += 1
@@ -976,8 +1091,8 @@ class CompiledFilter:
     def contacts(self, rows: np.ndarray) -> np.ndarray:
         """(M,) contact counts at configurations ``rows`` (M, dof): 0 where proven free."""
         out = np.empty(len(rows), dtype=np.int64)
-        check_configurations(self.scene.tree, self.scene.geometry, self._exact, rows, out,
-                             self.counters)
+        check_configurations(self.scene.tree, self.scene.geometry, self.scene.motion,
+                             self._exact, rows, out, self.counters)
         return out
 
     def paths(self, start_rows: np.ndarray, end_rows: np.ndarray, steps: np.ndarray,
@@ -985,8 +1100,8 @@ class CompiledFilter:
         """(M,) grid index of a colliding sample per path (−1: free), the lowest with
         ``first``; ``start_rows`` (M or 1, dof), ``end_rows`` (M, dof), ``steps`` (M,)."""
         out = np.empty(len(end_rows), dtype=np.int64)
-        check_paths(self.scene.tree, self.scene.geometry, self._exact, start_rows, end_rows,
-                    steps, first, out, self.counters)
+        check_paths(self.scene.tree, self.scene.geometry, self.scene.motion, self._exact,
+                    start_rows, end_rows, steps, first, out, self.counters)
         return out
 
 

@@ -148,3 +148,46 @@ def test_oracle_finishes_every_random_waypoint_task_without_a_collision(env_id):
     for seed in range(8):
         _, _ = play(env, oracle, seed)
         assert not env.unwrapped.episode_collided and not env.unwrapped.episode_invalid, seed
+
+
+def test_lazy_backward_pass_equals_ladder_q_tables():
+    # The compiled backward pass over stacked edges is ladder_q_tables, bit for bit, with
+    # missing rows, terminal edges and masked branches mixed in.
+    from agents.dp import _backward
+
+    rng = np.random.default_rng(3)
+    w, k = 6, 5
+    reward = rng.normal(size=(w, k, k))
+    reward[rng.random((w, k, k)) < 0.1] = np.nan
+    reward[0, 1:] = np.nan  # waypoint 0 has one origin row
+    terminal = rng.random((w, k, k)) < 0.2
+    allowed = rng.random((w, k)) < 0.8
+    allowed[:, 0] = True
+    q = np.empty((w, k, k))
+    _backward(reward, terminal, allowed, q)
+    tables = ladder_q_tables([(reward[0, :1], terminal[0, :1])]
+                             + [(reward[i], terminal[i]) for i in range(1, w)], allowed)
+    np.testing.assert_array_equal(q[0, :1], tables[0])
+    for i in range(1, w):
+        np.testing.assert_array_equal(q[i], tables[i])
+
+
+def test_lazy_oracle_checks_few_edges_and_replans_off_its_path():
+    env = gym.make("IKBranch/ToolTransfer-v0", n_waypoints=40)
+    oracle = DPOracle(env)
+    obs, _ = env.reset(seed=5)
+    oracle.predict(obs)
+    base = env.unwrapped
+    edges = 8 + 39 * 64
+    assert oracle.lazy.checks < edges / 4
+    # Push the arm off the plan (another valid branch), then ask again: the oracle's choice
+    # is the best from where the arm now stands, by full pricing.
+    mask = base.action_masks()
+    other = next(b for b in np.flatnonzero(mask) if b != oracle.plan[0])
+    obs, _, terminated, _, _ = env.step(other)
+    assert not terminated
+    action, _ = oracle.predict(obs)
+    full = [base.edge_rewards(i) for i in range(1, base.task.n_waypoints)]
+    tables = ladder_q_tables(full, base.valid[1:])
+    assert int(action) == int(np.argmax(np.where(base.action_masks(), tables[0][other],
+                                                 -np.inf)))

@@ -1,0 +1,96 @@
+"""The pricing of moves (``envs/moves.py``): one definition, whatever the batch shape."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from envs.moves import REWARD_TERMS, TaskMoves
+from tests.envs.env_cases import IDS, make
+
+
+def _ladder(env_id: str, seed: int = 0, **kwargs) -> TaskMoves:
+    env = make(env_id, time_weight=0.4, n_waypoints=4, **kwargs)
+    env.reset(seed=seed)
+    return env.unwrapped.ladder
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_stacked_prices_equal_each_waypoints_edges(env_id):
+    # The lazy planner prices all waypoints in one call; step and edge_rewards one
+    # waypoint at a time. Same moves, same bits.
+    ladder = _ladder(env_id)
+    n, k = ladder.valid.shape
+    origins, usable = ladder.stacked_origins()
+    collision = np.zeros((n, k, k), dtype=bool)
+    for w in range(n):
+        rows, exists = ladder.origins(w)
+        collision[w, : len(rows)][exists] = ladder.collisions(rows[exists], w)
+    stacked = ladder.terms(origins, np.arange(n), collision=collision)
+    for w in range(n):
+        reward, terminal = ladder.edges(w)
+        rows = usable[w] if w else usable[0, :1]
+        np.testing.assert_array_equal(stacked["reward"][w][: len(reward)][rows], reward[rows])
+        np.testing.assert_array_equal(stacked["terminal"][w][: len(reward)][rows],
+                                      terminal[rows])
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_reward_is_the_sum_of_its_terms_and_travel_is_the_cost_models(env_id):
+    ladder = _ladder(env_id, seed=1)
+    rng = np.random.default_rng(0)
+    arm = ladder.pricer.arm
+    origins = rng.uniform(arm.joint_limits[:, 0], arm.joint_limits[:, 1], size=(5, arm.dof))
+    for w in range(ladder.n_waypoints):
+        collision = rng.random((5, arm.n_branches)) < 0.3
+        terms = ladder.terms(origins, w, collision=collision)
+        total = np.zeros_like(terms["reward"])
+        for name in REWARD_TERMS:
+            total = total + terms[name]
+        np.testing.assert_array_equal(terms["reward"], total)
+        np.testing.assert_array_equal(terms["collision"], collision)
+        valid = ladder.valid[w]
+        np.testing.assert_array_equal(terms["invalid"], np.broadcast_to(~valid, total.shape))
+        cost = ladder.pricer.cost
+        targets = ladder.candidates[w][valid]
+        if w == 0 and ladder.task.free_start:
+            assert (terms["travel"] == 0).all() and (terms["time"] == 0).all()
+        else:
+            # TransitionCost (numpy) and the kernel agree to the last bit.
+            np.testing.assert_array_equal(terms["travel"][:, valid],
+                                          cost.travel(origins[:, None], targets[None]))
+            np.testing.assert_array_equal(terms["time"][:, valid],
+                                          cost.time(origins[:, None], targets[None]))
+            assert (terms["travel"][:, ~valid] == 0).all()
+
+
+def test_caches_answer_as_the_checker_and_keep_their_bounds():
+    env = make("IKBranch/Anthropomorphic-v1")
+    env.reset(seed=0)
+    pricer = env.unwrapped.pricer
+    arm = pricer.arm
+    rng = np.random.default_rng(1)
+    q0, q1 = rng.uniform(arm.joint_limits[:, 0], arm.joint_limits[:, 1], size=(2, 60, arm.dof))
+    expected = pricer.checker.paths_collide(q0, q1)
+    np.testing.assert_array_equal(pricer.paths_collide(q0, q1), expected)
+    np.testing.assert_array_equal(pricer.paths_collide(q0, q1), expected)  # cached now
+    np.testing.assert_array_equal(pricer.is_path_free(q0, q1), ~expected)
+    np.testing.assert_array_equal(pricer.paths_collide(q0[0], q1),
+                                  pricer.checker.paths_collide(q0[0], q1))
+    np.testing.assert_array_equal(pricer.configurations_collide(q0),
+                                  pricer.checker.collides(q0))
+    pricer.paths.bound = 10
+    pricer.paths_collide(q0[:8] + 0.01, q1[:8])
+    assert len(pricer.paths) == 8  # full: cleared, then this call's misses stored
+    with pytest.raises(ValueError, match="finite"):
+        pricer.paths_collide(q0[0], np.full((2, arm.dof), np.nan))
+    with pytest.raises(ValueError, match="finite"):
+        pricer.is_free(np.full((1, arm.dof), np.inf))
+
+
+def test_waypoints_outside_the_task_are_refused():
+    ladder = _ladder("IKBranch/Cartesian-v1")
+    with pytest.raises(ValueError, match="waypoint"):
+        ladder.edges(ladder.n_waypoints)
+    with pytest.raises(ValueError, match="waypoint"):
+        ladder.terms(ladder.candidates[0], np.array([0, -1]))
