@@ -1,10 +1,17 @@
-"""IK throughput per arm: poses/s on batches of 100k and single-pose latency.
+"""IK throughput per arm: poses/s on batches of 100k, cost per returned solution, and
+single-pose latency through the compiled path and through the numpy solver.
 
-    python benchmarks/ik_throughput.py [--batch 100000] [--repeats 5]
+    python benchmarks/ik_throughput.py [--batch 100000] [--repeats 5] [--arm NAME ...]
 
 Prints a Markdown table (best of ``--repeats``; the machines are shared and noisy). Run it
 single-threaded for the per-core figure: numpy's element-wise kernels are single-threaded,
 and OMP/OPENBLAS threads are pinned to 1 below for the small matrix products.
+
+Columns: K branches (closed-form × turn windows); valid branches per pose on poses of
+random configurations inside the limits; batched poses/s; ns per returned (valid)
+solution; single-pose latency of ``arm.ik(pose)`` for one (4, 4) pose (the numba-compiled
+path, ``envs/kinematics/compiled.py``; its one-off compilation is excluded and printed
+below the table) and of the numpy solver on the same pose (``arm.ik_batched``).
 """
 
 from __future__ import annotations
@@ -36,27 +43,45 @@ def main() -> None:
     parser.add_argument("--batch", type=int, default=100_000)
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--single-calls", type=int, default=2000)
+    parser.add_argument("--arm", action="append", choices=ARM_NAMES,
+                        help="arms to measure (default: all)")
     args = parser.parse_args()
 
     rng = np.random.default_rng(0)
-    print(f"| arm | K | batch poses/s ({args.batch:,}) | single-pose latency (µs) |")
-    print("|---|---:|---:|---:|")
-    for name in ARM_NAMES:
+    print(f"| arm | K | valid / pose | batch poses/s ({args.batch:,}) | ns / solution | "
+          "single pose (µs) | single pose, numpy (µs) |")
+    print("|---|---:|---:|---:|---:|---:|---:|")
+    compile_seconds = {}
+    for name in args.arm or ARM_NAMES:
         arm = make_arm(name)
         q = rng.uniform(arm.joint_limits[:, 0], arm.joint_limits[:, 1], (args.batch, arm.dof))
         poses = arm.fk(q)
+        _, valid = arm.ik(poses)
         batch_seconds = best_time(lambda poses=poses, arm=arm: arm.ik(poses), args.repeats)
-        single = poses[0]
+        singles = poses[: args.single_calls]
+        start = time.perf_counter()
+        arm.ik(singles[0])  # compiles the arm's kernel on first use
+        compile_seconds[name] = time.perf_counter() - start
 
-        def single_calls(arm=arm, single=single):
-            for _ in range(args.single_calls):
-                arm.ik(single)
+        def single_calls(arm=arm, singles=singles):
+            for pose in singles:
+                arm.ik(pose)
 
-        single_seconds = best_time(single_calls, args.repeats) / args.single_calls
+        def numpy_calls(arm=arm, singles=singles[:200]):
+            for pose in singles:
+                arm.ik_batched(pose[None])
+
+        single_seconds = best_time(single_calls, args.repeats) / len(singles)
+        numpy_seconds = best_time(numpy_calls, args.repeats) / len(singles[:200])
+        per_pose = valid.sum() / args.batch
         print(
-            f"| {name} | {arm.n_branches} | {args.batch / batch_seconds:,.0f} | "
-            f"{single_seconds * 1e6:.1f} |"
+            f"| {name} | {arm.n_branches} | {per_pose:.1f} | {args.batch / batch_seconds:,.0f} | "
+            f"{batch_seconds / valid.sum() * 1e9:.0f} | {single_seconds * 1e6:.1f} | "
+            f"{numpy_seconds * 1e6:.1f} |"
         )
+    print()
+    print("First single-pose call (numba compilation, once per arm class and process): "
+          + ", ".join(f"{name} {seconds:.2f} s" for name, seconds in compile_seconds.items()))
 
 
 if __name__ == "__main__":

@@ -1,4 +1,6 @@
-"""Closed-form kinematics of the papers' arms: pure numpy, no I/O, no RNG, no state.
+"""Closed-form kinematics of the papers' arms and of real industrial arms (the OPW family,
+Universal Robots): pure numpy, no I/O, no RNG, no state; single poses optionally through
+numba-compiled kernels (``compiled.py``).
 
 Contract (see ARCHITECTURE.md): ``make_arm(name, **params)`` returns a frozen arm with
 ``fk(q) -> (…, 4, 4)`` and ``ik(pose) -> (Q (…, K, dof), ok (…, K))``.
@@ -13,8 +15,10 @@ from .cylindrical import CylindricalArm
 from .cylindrical4 import Cylindrical4Arm
 from .dual import DualPprPrrArm, DualRrpRppArm, DualRrrPppArm
 from .frames import frenet_pose, frenet_rotation, pose_from_points
+from .opw import AbbIrb2400, AbbIrb2600, AbbIrb4600, KukaKr6R700, OpwArm
 from .rod import RodMechanism
 from .spherical import SphericalArm
+from .ur import Ur5e, Ur10e, UrArm
 
 _ARM_CLASSES: dict[str, type[Arm]] = {
     cls.name: cls
@@ -28,10 +32,22 @@ _ARM_CLASSES: dict[str, type[Arm]] = {
         DualRrrPppArm,
         DualPprPrrArm,
         RodMechanism,
+        OpwArm,
+        KukaKr6R700,
+        AbbIrb2400,
+        AbbIrb2600,
+        AbbIrb4600,
+        UrArm,
+        Ur5e,
+        Ur10e,
     )
 }
 
 ARM_NAMES: tuple[str, ...] = tuple(_ARM_CLASSES)
+#: The arms of the seeds (papers): closed-form branches only, limits within [−π, π].
+SEED_ARM_NAMES: tuple[str, ...] = ARM_NAMES[:9]
+#: Real industrial arms (issue 12): data-sheet parameters and limits, turn branches.
+INDUSTRIAL_ARM_NAMES: tuple[str, ...] = ARM_NAMES[9:]
 
 
 def make_arm(name: str, **params) -> Arm:
@@ -48,7 +64,9 @@ def make_arm(name: str, **params) -> Arm:
 
 __all__ = [
     "ARM_NAMES",
+    "INDUSTRIAL_ARM_NAMES",
     "LIMIT_TOL",
+    "SEED_ARM_NAMES",
     "Arm",
     "frenet_pose",
     "frenet_rotation",

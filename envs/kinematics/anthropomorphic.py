@@ -25,7 +25,7 @@ import numpy as np
 
 from .arm import REVOLUTE, Arm
 from .rotations import homogeneous, rot_x, rot_z
-from .wrist import with_positioning, wrist_branches, wrist_branches_scalar, wrist_rotation
+from .wrist import put_wrist_rows, with_positioning, wrist_branches, wrist_rotation
 
 _DEG = np.pi / 180.0
 
@@ -43,7 +43,7 @@ class AnthropomorphicArm(Arm):
     name: ClassVar[str] = "anthropomorphic"
     joint_names: ClassVar[tuple[str, ...]] = ("phi1", "phi2", "phi3", "phi4", "phi5", "phi6")
     joint_types: ClassVar[tuple[str, ...]] = (REVOLUTE,) * 6
-    branch_labels: ClassVar[tuple[str, ...]] = tuple(
+    closed_form_labels: ClassVar[tuple[str, ...]] = tuple(
         f"{shoulder}/elbow-{elbow}/wrist{wrist}"
         for shoulder in ("front", "back")
         for elbow in ("up", "down")
@@ -145,56 +145,67 @@ class AnthropomorphicArm(Arm):
         )
 
 
-    def _ik_single(self, m: list[list[float]]) -> list[list[float] | None]:
-        # _ik_candidates for one pose, formula for formula, in Python floats.
-        atan2, sqrt = math.atan2, math.sqrt
-        x, y, z = m[0][3], m[1][3], m[2][3]
-        horizontal = sqrt(x * x + y * y)
-        if horizontal < ON_AXIS_TOL:
-            phi1, cos1, sin1 = 0.0, 1.0, 0.0
-        else:
-            phi1, cos1, sin1 = atan2(-x, y), y / horizontal, -x / horizontal
-        (n00, n01, n02, _), (n10, n11, n12, _), (n20, n21, n22, _) = m[0], m[1], m[2]
-        t00, t01, t02 = cos1 * n00 + sin1 * n10, cos1 * n01 + sin1 * n11, cos1 * n02 + sin1 * n12
-        t10, t11, t12 = cos1 * n10 - sin1 * n00, cos1 * n11 - sin1 * n01, cos1 * n12 - sin1 * n02
-        height = z - self.l1
-        l2, l3 = self.l2, self.l3
-        rows: list[list[float] | None] = []
-        for side, elbow_signs in ((1.0, (-1.0, 1.0)), (-1.0, (1.0, -1.0))):
-            reach = side * horizontal
-            cos3 = (reach * reach + height * height - l2 * l2 - l3 * l3) / (2.0 * l2 * l3)
-            if not abs(cos3) <= 1.0 + REACH_TOL:
-                rows += [None] * 4
-                continue
-            cos3 = min(1.0, max(-1.0, cos3))
-            base = phi1 if side > 0 else (phi1 - math.pi if phi1 >= 0.0 else phi1 + math.pi)
-            bend = sqrt(1.0 - cos3 * cos3)
-            s00, s01, s02, s10, s11, s12 = (side * t00, side * t01, side * t02,
-                                            side * t10, side * t11, side * t12)
-            for elbow_sign in elbow_signs:
-                sin3 = bend * elbow_sign
-                along, across = l2 + l3 * cos3, l3 * sin3
-                upper_x = reach * along + height * across
-                upper_y = height * along - reach * across
-                norm = sqrt(upper_x * upper_x + upper_y * upper_y)
-                cos2, sin2 = (upper_x / norm, upper_y / norm) if norm else (1.0, 0.0)
-                cos23, sin23 = cos2 * cos3 - sin2 * sin3, sin2 * cos3 + cos2 * sin3
-                phi2, phi3 = atan2(upper_y, upper_x), atan2(sin3, cos3)
-                plus, minus = wrist_branches_scalar(
-                    s00,
-                    s01,
-                    s02,
-                    cos23 * s11 + sin23 * n21,
-                    cos23 * n20 - sin23 * s10,
-                    cos23 * n21 - sin23 * s11,
-                    cos23 * n22 - sin23 * s12,
-                )
-                rows.append([base, phi2, phi3, *plus])
-                rows.append([base, phi2, phi3, *minus])
-        return rows
+    def _kernel_parameters(self) -> np.ndarray:
+        return np.array([self.l1, self.l2, self.l3])
 
 
 _SHOULDER_SIGN = np.array([1.0, -1.0])  # front, back
 _SHOULDER_TURN = np.array([0.0, np.pi])
 #: Sign of sin φ3 for (shoulder, elbow): elbow up is φ3 < 0 in front and φ3 > 0 behind.
 _ELBOW_SIGN = np.array([[-1.0, 1.0], [1.0, -1.0]])
+
+
+def _anthropomorphic_kernel(m, p, out) -> None:
+    """``AnthropomorphicArm._ik_candidates`` for one pose, formula for formula, on floats
+    (the compiled single-pose path, ``envs/kinematics/compiled.py``)."""
+    l1, l2, l3 = p[0], p[1], p[2]
+    x, y, z = m[0, 3], m[1, 3], m[2, 3]
+    horizontal = math.sqrt(x * x + y * y)
+    if horizontal < ON_AXIS_TOL:
+        phi1, cos1, sin1 = 0.0, 1.0, 0.0
+    else:
+        phi1, cos1, sin1 = math.atan2(-x, y), y / horizontal, -x / horizontal
+    height = z - l1
+    row = 0
+    for shoulder in range(2):
+        side = 1.0 if shoulder == 0 else -1.0
+        reach = horizontal * side
+        cos3 = (reach * reach + height * height - l2**2 - l3**2) / (2.0 * l2 * l3)
+        if not abs(cos3) <= 1.0 + REACH_TOL:
+            row += 4
+            continue
+        cos3 = min(1.0, max(-1.0, cos3))
+        base = phi1 + (0.0 if shoulder == 0 else math.pi)
+        t00 = (cos1 * m[0, 0] + sin1 * m[1, 0]) * side
+        t01 = (cos1 * m[0, 1] + sin1 * m[1, 1]) * side
+        t02 = (cos1 * m[0, 2] + sin1 * m[1, 2]) * side
+        t10 = (cos1 * m[1, 0] - sin1 * m[0, 0]) * side
+        t11 = (cos1 * m[1, 1] - sin1 * m[0, 1]) * side
+        t12 = (cos1 * m[1, 2] - sin1 * m[0, 2]) * side
+        for elbow in range(2):
+            # Elbow up is φ3 < 0 when reaching forward and φ3 > 0 when reaching back.
+            sign = -side if elbow == 0 else side
+            sin3 = math.sqrt(1.0 - cos3 * cos3) * sign
+            phi3 = math.atan2(sin3, cos3)
+            along, across = l2 + l3 * cos3, l3 * sin3
+            upper_x = reach * along + height * across
+            upper_y = height * along - reach * across
+            phi2 = math.atan2(upper_y, upper_x)
+            norm = math.sqrt(upper_x * upper_x + upper_y * upper_y)
+            if norm == 0.0:
+                cos2, sin2 = 1.0, upper_y
+            else:
+                cos2, sin2 = upper_x / norm, upper_y / norm
+            cos23, sin23 = cos2 * cos3 - sin2 * sin3, sin2 * cos3 + cos2 * sin3
+            put_wrist_rows(
+                out, row, base, phi2, phi3,
+                t00, t01, t02,
+                cos23 * t11 + sin23 * m[2, 1],
+                cos23 * m[2, 0] - sin23 * t10,
+                cos23 * m[2, 1] - sin23 * t11,
+                cos23 * m[2, 2] - sin23 * t12,
+            )
+            row += 2
+
+
+AnthropomorphicArm._kernel = staticmethod(_anthropomorphic_kernel)

@@ -1,27 +1,39 @@
 """The common contract of every arm: parameters as frozen data, FK, all-branch IK.
 
-Subclasses supply the closed-form maths (``_fk``, ``_ik_candidates``); this base class owns
-input validation, angle wrapping, joint-limit checks and the NaN convention, so every arm
-answers bad input and unreachable poses the same way.
+Subclasses supply the closed-form maths (``_fk``, ``_ik_candidates`` and its scalar twin
+``_kernel``); this base class owns input validation, the reduction of revolute values to
+their representatives inside the joint limits (turn branches included), joint-limit
+checks and the NaN convention, so every arm answers bad input and unreachable poses the
+same way.
+
+Revolute joints, by their limits (``docs/kinematics_opw_ur.md``, "Turn branches"):
+
+* limits within [−π, π] (every seed arm): the closed-form value is wrapped to [−π, π)
+  and checked against the limits, exactly as before turn branches existed;
+* limits outside [−π, π]: the joint reports every 2π shift of the closed-form value that
+  lies inside its limits, one per *turn window*. Window t of a joint with limits [lo, hi]
+  holds the representative in [lo + 2πt, lo + 2π(t + 1)) (shifted down by ``LIMIT_TOL``
+  so a value on the lower limit stays in window 0); there are
+  N = ⌈(hi − lo)/2π⌉ windows, the most a generic value can occupy. The branches are every
+  closed-form branch × every combination of windows (first turned joint slowest), so
+  ``n_branches`` is fixed per arm and a pose masks the windows it cannot use. Values are
+  never wrapped into a window they do not belong to, never clamped: travel between two
+  branches is the real rotation.
 """
 
 from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from dataclasses import dataclass, fields
 from functools import cached_property
+from itertools import product
 from typing import ClassVar
 
 import numpy as np
 
-from .rotations import (
-    ORTHONORMAL_TOL,
-    as_float_array,
-    validate_rotation,
-    validate_rotation_scalar,
-    wrap_angle,
-)
+from .rotations import ORTHONORMAL_TOL, as_float_array, validate_rotation, wrap_angle
 
 #: A branch counts as inside its joint limits up to this slack (rad or m), so a solution
 #: that lands on a limit within rounding is not thrown away. Values are never clamped.
@@ -29,8 +41,22 @@ LIMIT_TOL = 1e-9
 
 REVOLUTE, PRISMATIC = "revolute", "prismatic"
 
-#: Poses solved per pass inside ``ik`` (a batch is split so temporaries stay in cache).
+#: Poses solved per pass inside ``ik`` for arms with up to 8 branches (a batch is split so
+#: temporaries stay in cache); arms with more branches use proportionally smaller chunks.
 IK_CHUNK = 2048
+
+#: The most branches (closed-form × turn windows) an arm may enumerate: limits so wide
+#: that they exceed it are a data-entry error, not a robot (UR5e: 256, IRB 2600: 72).
+MAX_BRANCHES = 4096
+
+TWO_PI = 2.0 * np.pi
+#: Revolute limits within ±(π + this) count as "within [−π, π]" (wrapped joints).
+_WITHIN_PI_TOL = 1e-12
+#: Slack on the number of turn windows: a span of 4π (UR's ±360°) needs 2 windows, not 3.
+_WINDOW_COUNT_TOL = 1e-9
+
+# How ``_checked_candidates`` (and the compiled single-pose path) treat each joint.
+LINEAR, WRAPPED_FULL, WRAPPED, TURNS = 0, 1, 2, 3
 
 
 @dataclass(frozen=True, eq=False)
@@ -38,15 +64,22 @@ class Arm(ABC):
     """Base class: subclasses are frozen dataclasses whose fields are the arm's parameters.
 
     Every subclass has the fields ``joint_limits`` ((dof, 2) lower/upper, rad or m) and
-    ``home`` ((dof,) configuration inside the limits), stored as read-only arrays.
+    ``home`` ((dof,) configuration inside the limits), stored as read-only arrays, and the
+    class attribute ``closed_form_labels`` (its closed-form branches, in solver order).
+    ``branch_labels`` adds the turn windows of joints whose limits exceed [−π, π].
     """
 
     name: ClassVar[str]
     joint_names: ClassVar[tuple[str, ...]]
     joint_types: ClassVar[tuple[str, ...]]
-    branch_labels: ClassVar[tuple[str, ...]]
+    closed_form_labels: ClassVar[tuple[str, ...]]
     #: "pose" arms read the whole (4, 4) target; "position" arms only its translation.
     target: ClassVar[str] = "pose"
+    #: The scalar twin of ``_ik_candidates`` used by the compiled single-pose path (see
+    #: ``envs/kinematics/compiled.py``): ``kernel(m, params, out)`` writes the closed-form
+    #: rows of the (4, 4) float array ``m`` into ``out`` (Kc, dof), which arrives NaN;
+    #: ``params`` is ``_kernel_parameters()``. Plain Python on floats and ``math``.
+    _kernel: ClassVar[Callable | None] = None
 
     joint_limits: np.ndarray
     home: np.ndarray
@@ -64,11 +97,11 @@ class Arm(ABC):
                 f"{self.name}: joint_limits must have shape ({self.dof}, 2), got {limits.shape}"
             )
         if np.any(limits[:, 0] >= limits[:, 1]):
-            raise ValueError(f"{self.name}: every joint limit needs lower < upper")
-        revolute = self.revolute_mask
-        if np.any(np.abs(limits[revolute]) > np.pi + 1e-12):
-            # Branches are reported wrapped to [−π, π); wider ranges would make K ambiguous.
-            raise ValueError(f"{self.name}: revolute joint limits must lie within [-pi, pi]")
+            bad = int(np.flatnonzero(limits[:, 0] >= limits[:, 1])[0])
+            raise ValueError(
+                f"{self.name}: every joint limit needs lower < upper "
+                f"(joint_limits of {self.joint_names[bad]}: {limits[bad].tolist()})"
+            )
         home = as_float_array(self.home, f"{self.name} home").copy()
         if home.shape != (self.dof,):
             raise ValueError(f"{self.name}: home must have shape ({self.dof},), got {home.shape}")
@@ -78,6 +111,11 @@ class Arm(ABC):
         home.flags.writeable = False
         object.__setattr__(self, "joint_limits", limits)
         object.__setattr__(self, "home", home)
+        if self.n_branches > MAX_BRANCHES:
+            raise ValueError(
+                f"{self.name}: joint_limits allow {self.n_branches} branches "
+                f"({self.n_closed_form} closed-form × turn windows); at most {MAX_BRANCHES}"
+            )
         self._check_parameters()
 
     def _check_parameters(self) -> None:  # noqa: B027 (optional hook)
@@ -89,12 +127,63 @@ class Arm(ABC):
         return len(self.joint_names)
 
     @property
+    def n_closed_form(self) -> int:
+        """Closed-form branches per pose, before turn windows."""
+        return len(self.closed_form_labels)
+
+    @property
     def n_branches(self) -> int:
-        return len(self.branch_labels)
+        return self.n_closed_form * self._n_turn_combinations
 
     @property
     def revolute_mask(self) -> np.ndarray:
         return np.array([kind == REVOLUTE for kind in self.joint_types])
+
+    @cached_property
+    def turn_windows(self) -> tuple[tuple[int, tuple[tuple[float, float], ...]], ...]:
+        """(joint, windows) of every joint with more than one turn window; each window is
+        the (lower, upper) range in rad of the joint values it reports (module docstring)."""
+        windows = []
+        for joint, (mode, lower, upper, slots) in enumerate(self._joint_modes):
+            if mode == TURNS and slots > 1:
+                windows.append((joint, tuple(
+                    (lower + TWO_PI * t, min(lower + TWO_PI * (t + 1), upper))
+                    for t in range(slots)
+                )))
+        return tuple(windows)
+
+    @cached_property
+    def branch_labels(self) -> tuple[str, ...]:
+        """K labels: the closed-form label, then ``/name@lo..hi`` (degrees) for the turn
+        window of every joint that has several, e.g. ``front/elbow-up/wrist+/j6@10..350``."""
+        if not self.turn_windows:
+            return tuple(self.closed_form_labels)
+        parts = [
+            [f"{self.joint_names[joint]}@{_degrees(lo)}..{_degrees(hi)}" for lo, hi in windows]
+            for joint, windows in self.turn_windows
+        ]
+        return tuple(
+            "/".join((closed, *turns))
+            for closed in self.closed_form_labels
+            for turns in product(*parts)
+        )
+
+    @cached_property
+    def branch_closed_form(self) -> np.ndarray:
+        """(K,) index into ``closed_form_labels`` of every branch."""
+        index = np.repeat(np.arange(self.n_closed_form), self._n_turn_combinations)
+        index.flags.writeable = False
+        return index
+
+    @cached_property
+    def branch_turns(self) -> np.ndarray:
+        """(K, J) turn window of every branch for the J joints of ``turn_windows``."""
+        counts = [len(windows) for _, windows in self.turn_windows]
+        combos = np.array(list(product(*(range(n) for n in counts))), dtype=int)
+        combos = combos.reshape(self._n_turn_combinations, len(counts))
+        turns = np.tile(combos, (self.n_closed_form, 1))
+        turns.flags.writeable = False
+        return turns
 
     def fk(self, q) -> np.ndarray:
         """Pose (…, 4, 4) of the output frame for joint values ``q`` (…, dof)."""
@@ -104,19 +193,23 @@ class Arm(ABC):
         return self._fk(q)
 
     def ik(self, pose) -> tuple[np.ndarray, np.ndarray]:
-        """Every closed-form solution for ``pose`` (…, 4, 4).
+        """Every closed-form solution for ``pose`` (…, 4, 4), with every turn it allows.
 
         Returns ``Q`` (…, K, dof) in the fixed order of ``branch_labels`` and ``ok`` (…, K):
         a branch is valid when it exists and lies inside ``joint_limits``; invalid rows are
         NaN. An unreachable pose is not an error: all its rows are invalid.
+
+        One (4, 4) ndarray goes through the compiled single-pose path when numba is
+        available (the same answer to 1e-12, ``envs/kinematics/compiled.py``).
         """
-        if (
-            type(pose) is np.ndarray
-            and pose.shape == (4, 4)
-            and pose.dtype.kind in "fiu"
-            and self._has_single_path
-        ):
-            return self._ik_one(pose)
+        if type(pose) is np.ndarray and pose.shape == (4, 4) and pose.dtype.kind in "fiu":
+            single = self._single_pose_solver
+            if single is not None:
+                return single(pose)
+        return self.ik_batched(pose)
+
+    def ik_batched(self, pose) -> tuple[np.ndarray, np.ndarray]:
+        """``ik`` through the pure-numpy solver for any batch shape (the reference)."""
         pose = as_float_array(pose, "pose")
         if pose.ndim < 2 or pose.shape[-2:] != (4, 4):
             raise ValueError(f"pose must have shape (..., 4, 4), got {pose.shape}")
@@ -127,93 +220,17 @@ class Arm(ABC):
         candidates = np.empty((flat.shape[0], self.n_branches, self.dof))
         ok = np.empty((flat.shape[0], self.n_branches), dtype=bool)
         # Chunks keep the temporaries in cache: on 100k poses this is ~3x faster than one pass.
-        for start in range(0, flat.shape[0], IK_CHUNK):
-            chunk = flat[start : start + IK_CHUNK]
+        chunk_size = max(64, IK_CHUNK * 8 // max(8, self.n_branches))
+        for start in range(0, flat.shape[0], chunk_size):
+            chunk = flat[start : start + chunk_size]
             if self.target == "pose":
                 validate_rotation(chunk[..., :3, :3], "pose")
-            candidates[start : start + IK_CHUNK], ok[start : start + IK_CHUNK] = (
-                self._checked_candidates(chunk)
-            )
+            window = slice(start, start + chunk_size)
+            result = self._checked_candidates(chunk, out=(candidates[window], ok[window]))
+            if result is not None:
+                candidates[window], ok[window] = result
         shape = (*batch_shape, self.n_branches)
         return candidates.reshape((*shape, self.dof)), ok.reshape(shape)
-
-    def _ik_one(self, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """One (4, 4) array through ``_ik_single``: the same checks, in Python floats."""
-        m = pose.tolist()
-        if not all(map(math.isfinite, (*m[0], *m[1], *m[2], *m[3]))):
-            raise ValueError("pose contains NaN or inf")
-        bottom = m[3]
-        if (abs(bottom[0]) > ORTHONORMAL_TOL or abs(bottom[1]) > ORTHONORMAL_TOL
-                or abs(bottom[2]) > ORTHONORMAL_TOL or abs(bottom[3] - 1.0) > ORTHONORMAL_TOL):
-            raise ValueError("pose bottom row must be (0, 0, 0, 1)")
-        if self.target == "pose":
-            validate_rotation_scalar(m, "pose")
-        rows, ok = [], []
-        limits, revolute = self._checked_limits, self._revolute_joints
-        for row in self._ik_single(m):
-            valid = row is not None
-            if valid:
-                for joint in revolute:
-                    if row[joint] >= math.pi:  # the one value of [−π, π] outside [−π, π)
-                        row[joint] -= 2.0 * math.pi
-                for joint, lower, upper in limits:
-                    if not lower - LIMIT_TOL <= row[joint] <= upper + LIMIT_TOL:
-                        valid = False
-                        break
-            rows.append(row if valid else self._nan_row)
-            ok.append(valid)
-        return np.array(rows), np.array(ok)
-
-    @cached_property
-    def _has_single_path(self) -> bool:
-        return type(self)._ik_single is not Arm._ik_single
-
-    @cached_property
-    def _revolute_joints(self) -> tuple[int, ...]:
-        return tuple(int(joint) for joint in np.flatnonzero(self.revolute_mask))
-
-    @cached_property
-    def _checked_limits(self) -> tuple[tuple[int, float, float], ...]:
-        """(joint, lower, upper) of every joint whose range a wrapped value can leave."""
-        return tuple(
-            (joint, float(lower), float(upper))
-            for joint, (lower, upper) in enumerate(self.joint_limits)
-            if not (self.joint_types[joint] == REVOLUTE and lower <= -np.pi and upper >= np.pi)
-        )
-
-    @cached_property
-    def _nan_row(self) -> tuple[float, ...]:
-        return (math.nan,) * self.dof
-
-    def _ik_single(self, m: list[list[float]]) -> list[list[float] | None]:
-        """Optional fast path for one pose (``m`` its nested list): the K raw rows as lists,
-        revolute values in [−π, π], None where a branch does not exist. Arms that define it
-        must agree with ``_ik_candidates`` (tests compare the two)."""
-        raise NotImplementedError
-
-    def _checked_candidates(self, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        with np.errstate(invalid="ignore"):
-            raw = self._ik_candidates(pose)
-            if isinstance(raw, np.ndarray):
-                raw = [raw[..., joint] for joint in range(self.dof)]
-            # Joint by joint on (…, K) columns: wrapping and limit checks on the stacked
-            # (…, K, dof) array would pass over a short strided axis, slowly.
-            columns, ok = [], None
-            for joint, (lower, upper) in enumerate(self.joint_limits):
-                values = raw[joint]
-                if self.joint_types[joint] == REVOLUTE:
-                    values = wrap_angle(values)
-                    if lower <= -np.pi and upper >= np.pi:
-                        inside = values == values  # a wrapped angle fits; NaN does not
-                    else:
-                        inside = (values >= lower - LIMIT_TOL) & (values <= upper + LIMIT_TOL)
-                else:
-                    inside = (values >= lower - LIMIT_TOL) & (values <= upper + LIMIT_TOL)
-                columns.append(values)
-                ok = inside if ok is None else ok & inside
-        candidates = np.stack(columns, axis=-1)
-        candidates[~ok] = np.nan
-        return candidates, ok
 
     def within_limits(self, q) -> np.ndarray:
         """(…,) bool: every joint of ``q`` (…, dof) inside its limits (with ``LIMIT_TOL``)."""
@@ -221,11 +238,136 @@ class Arm(ABC):
         lower, upper = self.joint_limits[:, 0], self.joint_limits[:, 1]
         return np.all((q >= lower - LIMIT_TOL) & (q <= upper + LIMIT_TOL), axis=-1)
 
+    # ------------------------------------------------------------------ limits and turns
+    @cached_property
+    def _joint_modes(self) -> tuple[tuple[int, float, float, int], ...]:
+        """(mode, lower, upper, windows) per joint; see the module docstring."""
+        modes = []
+        for kind, (lower, upper) in zip(self.joint_types, self.joint_limits, strict=True):
+            lower, upper = float(lower), float(upper)
+            if kind != REVOLUTE:
+                modes.append((LINEAR, lower, upper, 1))
+            elif abs(lower) <= np.pi + _WITHIN_PI_TOL and abs(upper) <= np.pi + _WITHIN_PI_TOL:
+                full = lower <= -np.pi and upper >= np.pi
+                modes.append((WRAPPED_FULL if full else WRAPPED, lower, upper, 1))
+            else:
+                windows = max(1, math.ceil((upper - lower) / TWO_PI - _WINDOW_COUNT_TOL))
+                modes.append((TURNS, lower, upper, windows))
+        return tuple(modes)
+
+    @cached_property
+    def _n_turn_combinations(self) -> int:
+        return math.prod(slots for _, _, _, slots in self._joint_modes)
+
+    def _checked_candidates(self, pose: np.ndarray, out=None):
+        """(candidates (…, K, dof), ok (…, K)) for a chunk; with turn windows and ``out``
+        (two arrays of those shapes) they are written there and None is returned."""
+        with np.errstate(invalid="ignore"):
+            raw = self._ik_candidates(pose)
+            if isinstance(raw, np.ndarray):
+                raw = [raw[..., joint] for joint in range(self.dof)]
+            # Joint by joint on (…, Kc) columns: wrapping and limit checks on the stacked
+            # (…, K, dof) array would pass over a short strided axis, slowly.
+            columns, ok, turned = [], None, []
+            for values, (mode, lower, upper, slots) in zip(raw, self._joint_modes, strict=True):
+                if mode == TURNS:
+                    values = turn_representatives(values, lower, slots)
+                elif mode != LINEAR:
+                    values = wrap_angle(values)
+                if mode == WRAPPED_FULL:
+                    inside = values == values  # a wrapped angle fits; NaN does not
+                else:
+                    inside = (values >= lower - LIMIT_TOL) & (values <= upper + LIMIT_TOL)
+                columns.append(values)
+                if slots > 1:
+                    turned.append(inside)  # (…, Kc, windows)
+                else:
+                    ok = inside if ok is None else ok & inside
+        if not turned:
+            candidates = np.stack(columns, axis=-1)
+            candidates[~ok] = np.nan
+            return candidates, ok
+        return self._expand_turns(columns, ok, turned, out)
+
+    def _expand_turns(self, columns, ok, turned, out=None):
+        """Every branch from (…, Kc) columns and the (…, Kc, windows) columns of turned
+        joints: branch k takes closed-form row k // T and, for each turned joint, the
+        window its index names (first turned joint slowest), by one gather per joint."""
+        if ok is None:
+            ok = np.ones(turned[0].shape[:-1], dtype=bool)
+        lead = np.broadcast_shapes(ok.shape, *(inside.shape[:-1] for inside in turned))
+        batch = lead[:-1]
+        given = out is not None
+        if not given:
+            out = (np.empty((*batch, self.n_branches, self.dof)),
+                   np.empty((*batch, self.n_branches), dtype=bool))
+        candidates, valid = out
+        closed, windows = self._turn_gather
+        np.take(np.broadcast_to(ok, lead), closed, axis=-1, out=valid)
+        for index, inside in enumerate(turned):
+            inside = np.broadcast_to(inside, (*lead, inside.shape[-1])).reshape((*batch, -1))
+            valid &= np.take(inside, windows[index], axis=-1)
+        invalid = ~valid
+        index = 0
+        for joint, values in enumerate(columns):
+            if self._joint_modes[joint][3] > 1:
+                values = np.broadcast_to(values, (*lead, values.shape[-1])).reshape((*batch, -1))
+                column = np.take(values, windows[index], axis=-1)
+                index += 1
+            else:
+                column = np.take(np.broadcast_to(values, lead), closed, axis=-1)
+            column[invalid] = np.nan
+            candidates[..., joint] = column
+        return None if given else (candidates, valid)
+
+    @cached_property
+    def _turn_gather(self) -> tuple[np.ndarray, list[np.ndarray]]:
+        """For every branch: its closed-form row, and per turned joint the index of its
+        window's value in that joint's (Kc·windows) flattened columns."""
+        turns = self.branch_turns
+        counts = [len(windows) for _, windows in self.turn_windows]
+        closed = self.branch_closed_form
+        return closed, [closed * count + turns[:, j] for j, count in enumerate(counts)]
+
+    # ------------------------------------------------------------- compiled single pose
+    @cached_property
+    def _single_pose_solver(self) -> Callable | None:
+        from .compiled import single_pose_solver
+
+        return single_pose_solver(self)
+
+    def __getstate__(self) -> dict:
+        # The compiled solver is a closure (not picklable) and cheap to rebuild.
+        state = self.__dict__.copy()
+        state.pop("_single_pose_solver", None)
+        return state
+
+    def _kernel_parameters(self) -> np.ndarray:
+        """The float parameters ``_kernel`` reads, in its order (subclasses override)."""
+        return np.zeros(0)
+
     # ------------------------------------------------------------------------ for subclasses
     @abstractmethod
     def _fk(self, q: np.ndarray) -> np.ndarray: ...
 
     @abstractmethod
     def _ik_candidates(self, pose: np.ndarray) -> np.ndarray | list[np.ndarray]:
-        """Raw candidates in branch order, NaN where a branch does not exist: a (…, K, dof)
-        array, or the dof joint columns, each (…, K) (faster for big batches)."""
+        """Raw candidates in branch order, NaN where a branch does not exist: a (…, Kc, dof)
+        array, or the dof joint columns, each (…, Kc) (faster for big batches). Revolute
+        values may be any 2π shift; the base class picks the representatives."""
+
+
+def turn_representatives(values: np.ndarray, lower: float, slots: int) -> np.ndarray:
+    """The value of each turn window for raw revolute ``values`` (…): window 0 holds the
+    shift in [lower − LIMIT_TOL, lower − LIMIT_TOL + 2π), window t that plus 2πt.
+    Returns (…) for one window, (…, slots) otherwise; NaN stays NaN."""
+    base = lower - LIMIT_TOL
+    first = values - TWO_PI * np.floor((values - base) / TWO_PI)
+    if slots == 1:
+        return first
+    return first[..., None] + TWO_PI * np.arange(slots)
+
+
+def _degrees(angle: float) -> str:
+    """A window edge for a label: degrees, 6 significant digits, no '-0'."""
+    return f"{round(float(np.rad2deg(angle)), 6) + 0.0:g}"

@@ -17,7 +17,7 @@ import numpy as np
 
 from .arm import PRISMATIC, REVOLUTE, Arm
 from .rotations import homogeneous
-from .wrist import solve_with_wrist, wrist_rotation
+from .wrist import put_wrist_rows, solve_with_wrist, wrist_rotation
 
 _DEG = np.pi / 180.0
 
@@ -31,7 +31,7 @@ class CartesianArm(Arm):
     name: ClassVar[str] = "cartesian"
     joint_names: ClassVar[tuple[str, ...]] = ("s1", "s2", "s3", "phi1", "phi2", "phi3")
     joint_types: ClassVar[tuple[str, ...]] = (PRISMATIC,) * 3 + (REVOLUTE,) * 3
-    branch_labels: ClassVar[tuple[str, ...]] = ("wrist+", "wrist-")
+    closed_form_labels: ClassVar[tuple[str, ...]] = ("wrist+", "wrist-")
 
     joint_limits: np.ndarray = (
         (-1.0, 1.0),
@@ -48,3 +48,12 @@ class CartesianArm(Arm):
 
     def _ik_candidates(self, pose: np.ndarray) -> np.ndarray:
         return solve_with_wrist(pose[..., None, :3, 3], pose[..., None, :3, :3])
+
+
+def _cartesian_kernel(m, p, out) -> None:
+    """``CartesianArm._ik_candidates`` for one pose (``envs/kinematics/compiled.py``)."""
+    put_wrist_rows(out, 0, m[0, 3], m[1, 3], m[2, 3],
+                   m[0, 0], m[0, 1], m[0, 2], m[1, 1], m[2, 0], m[2, 1], m[2, 2])
+
+
+CartesianArm._kernel = staticmethod(_cartesian_kernel)

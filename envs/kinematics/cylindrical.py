@@ -11,6 +11,7 @@ uniquely"). Branches (2): wrist + / − (sign of φ3, the paper's φ3 = ±arccos
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -18,7 +19,7 @@ import numpy as np
 
 from .arm import PRISMATIC, REVOLUTE, Arm
 from .rotations import homogeneous, premultiply_rotation, rot_z
-from .wrist import solve_with_wrist, wrist_rotation
+from .wrist import put_wrist_rows, solve_with_wrist, wrist_rotation
 
 _DEG = np.pi / 180.0
 
@@ -34,7 +35,7 @@ class CylindricalArm(Arm):
     joint_types: ClassVar[tuple[str, ...]] = (
         PRISMATIC, REVOLUTE, PRISMATIC, REVOLUTE, REVOLUTE, REVOLUTE,
     )
-    branch_labels: ClassVar[tuple[str, ...]] = ("wrist+", "wrist-")
+    closed_form_labels: ClassVar[tuple[str, ...]] = ("wrist+", "wrist-")
 
     joint_limits: np.ndarray = (
         (0.3, 1.3),
@@ -58,3 +59,17 @@ class CylindricalArm(Arm):
         positioning = np.stack([z, phi1, np.sqrt(x * x + y * y)], -1)[..., None, :]
         r_wrist = premultiply_rotation(-phi1, pose[..., :3, :3], axis=2)
         return solve_with_wrist(positioning, r_wrist[..., None, :, :])
+
+
+def _cylindrical_kernel(m, p, out) -> None:
+    """``CylindricalArm._ik_candidates`` for one pose (``envs/kinematics/compiled.py``)."""
+    x, y, z = m[0, 3], m[1, 3], m[2, 3]
+    phi1 = math.atan2(-x, y)
+    # Rz(−φ1)·R row by row, as premultiply_rotation forms it.
+    c, s = math.cos(-phi1), math.sin(-phi1)
+    w00, w01, w02 = c * m[0, 0] - s * m[1, 0], c * m[0, 1] - s * m[1, 1], c * m[0, 2] - s * m[1, 2]
+    w11 = s * m[0, 1] + c * m[1, 1]
+    put_wrist_rows(out, 0, z, phi1, np.hypot(x, y), w00, w01, w02, w11, m[2, 0], m[2, 1], m[2, 2])
+
+
+CylindricalArm._kernel = staticmethod(_cylindrical_kernel)

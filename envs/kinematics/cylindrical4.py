@@ -13,6 +13,7 @@ is invalid. Branches (1).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -36,7 +37,7 @@ class Cylindrical4Arm(Arm):
     name: ClassVar[str] = "cylindrical4"
     joint_names: ClassVar[tuple[str, ...]] = ("s1", "phi1", "s2", "phi2")
     joint_types: ClassVar[tuple[str, ...]] = (PRISMATIC, REVOLUTE, PRISMATIC, REVOLUTE)
-    branch_labels: ClassVar[tuple[str, ...]] = ("unique",)
+    closed_form_labels: ClassVar[tuple[str, ...]] = ("unique",)
 
     joint_limits: np.ndarray = (
         (0.3, 1.0),
@@ -60,3 +61,26 @@ class Cylindrical4Arm(Arm):
         q = np.stack([z, phi1, np.hypot(x, y), phi2], -1)
         q = np.where((residual <= CONSTRAINT_TOL)[..., None], q, np.nan)
         return q[..., None, :]
+
+
+def _cylindrical4_kernel(m, p, out) -> None:
+    """``Cylindrical4Arm._ik_candidates`` for one pose (``envs/kinematics/compiled.py``)."""
+    x, y, z = m[0, 3], m[1, 3], m[2, 3]
+    phi1 = math.atan2(-x, y)
+    c, s = math.cos(phi1), math.sin(phi1)
+    # local = Rz(φ1)ᵀ·R must be Ry(φ2).
+    l00, l01, l02 = c * m[0, 0] + s * m[1, 0], c * m[0, 1] + s * m[1, 1], c * m[0, 2] + s * m[1, 2]
+    l10, l11, l12 = c * m[1, 0] - s * m[0, 0], c * m[1, 1] - s * m[0, 1], c * m[1, 2] - s * m[0, 2]
+    l20, l21, l22 = m[2, 0], m[2, 1], m[2, 2]
+    phi2 = math.atan2(l02, l00)
+    c2, s2 = math.cos(phi2), math.sin(phi2)
+    residual = max(
+        abs(l00 - c2), abs(l01), abs(l02 - s2),
+        abs(l10), abs(l11 - 1.0), abs(l12),
+        abs(l20 + s2), abs(l21), abs(l22 - c2),
+    )
+    if residual <= CONSTRAINT_TOL:
+        out[0, 0], out[0, 1], out[0, 2], out[0, 3] = z, phi1, np.hypot(x, y), phi2
+
+
+Cylindrical4Arm._kernel = staticmethod(_cylindrical4_kernel)

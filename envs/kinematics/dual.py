@@ -50,6 +50,7 @@ see each class for the convention that picks one.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -57,7 +58,7 @@ import numpy as np
 
 from .arm import PRISMATIC, REVOLUTE, Arm
 from .rotations import homogeneous, rot_x, rot_z
-from .wrist import WRIST_SINGULAR_TOL, solve_yxy_wrist
+from .wrist import WRIST_SINGULAR_TOL, solve_yxy_wrist, wrist_branches_scalar
 
 _DEG = np.pi / 180.0
 
@@ -80,6 +81,23 @@ def solve_zxz(rotation: np.ndarray) -> np.ndarray:
 
 
 _Y_TO_Z = rot_x(np.pi / 2)
+#: Its entries cos(π/2) (6e-17, not 0) and sin(π/2), for ``zxz_scalar``.
+_PC, _PS = float(_Y_TO_Z[1, 1]), float(_Y_TO_Z[2, 1])
+
+
+def zxz_scalar(a00, a01, a02, a10, a11, a12, a20, a21, a22):
+    """``solve_zxz`` for one rotation given as floats: ((α, β, γ), (α', β', γ')).
+
+    M = Pᵀ·A·P entry by entry (P = ``_Y_TO_Z``, its 6e-17 entries kept), then the wrist."""
+    pc, ps = _PC, _PS
+    # B = A·P, then M = Pᵀ·B.
+    b01, b02 = a01 * pc + a02 * ps, a02 * pc - a01 * ps
+    b11, b12 = a11 * pc + a12 * ps, a12 * pc - a11 * ps
+    b21, b22 = a21 * pc + a22 * ps, a22 * pc - a21 * ps
+    m00, m01, m02 = a00, b01, b02
+    m11 = pc * b11 + ps * b21
+    m20, m21, m22 = pc * a20 - ps * a10, pc * b21 - ps * b11, pc * b22 - ps * b12
+    return wrist_branches_scalar(m00, m01, m02, m11, m20, m21, m22)
 
 
 def _relative_pose(r3: np.ndarray, p3: np.ndarray, r4: np.ndarray, p4: np.ndarray):
@@ -126,7 +144,7 @@ class DualRrpRppArm(Arm):
     joint_types: ClassVar[tuple[str, ...]] = (
         (REVOLUTE,) * 2 + (PRISMATIC, REVOLUTE) + (PRISMATIC,) * 2
     )
-    branch_labels: ClassVar[tuple[str, ...]] = ("phi1+", "phi1-")
+    closed_form_labels: ClassVar[tuple[str, ...]] = ("phi1+", "phi1-")
 
     #: OA, arm 1's base on Ox (the paper's a0 in eq. 6; no value given): 0.3 m. The flipped
     #: branch is the pair turned half a turn about Oz with arm 1's base moved by 2·a0, so a
@@ -193,6 +211,10 @@ class DualRrpRppArm(Arm):
         s5 = w[..., 2] + s3 * d[..., 2]
         return np.stack([phi1, phi2, s3, phi6, s5, s4], -1)
 
+    def _kernel_parameters(self) -> np.ndarray:
+        s3_mid = 0.5 * (self.joint_limits[2, 0] + self.joint_limits[2, 1])
+        return np.array([self.a0, self.l1, self.b0, s3_mid])
+
     def _singular_angles(self, rotation, t, s3_mid, phi1, phi2, phi6, singular):
         """φ1 = 0 or π: R34 = Rx(φ1)·Rz(θ) with θ = φ6 − ε·φ2 (ε = cos φ1).
 
@@ -231,7 +253,7 @@ class DualRrrPppArm(Arm):
     name: ClassVar[str] = "dual_rrr_ppp"
     joint_names: ClassVar[tuple[str, ...]] = ("phi1", "phi2", "phi3", "s4", "s5", "s6")
     joint_types: ClassVar[tuple[str, ...]] = (REVOLUTE,) * 3 + (PRISMATIC,) * 3
-    branch_labels: ClassVar[tuple[str, ...]] = ("phi2+", "phi2-")
+    closed_form_labels: ClassVar[tuple[str, ...]] = ("phi2+", "phi2-")
 
     #: AO, height of arm 1's first pair (the paper's h in eq. 8; no value given): 0.8 m.
     h: float = 0.8
@@ -267,6 +289,9 @@ class DualRrrPppArm(Arm):
             [self.l1 * np.cos(phi1), self.l1 * np.sin(phi1), np.full_like(phi1, self.h)], -1
         )
         return r3, base + self.l2 * r2[..., :, 2] + self.l3 * r3[..., :, 0]
+
+    def _kernel_parameters(self) -> np.ndarray:
+        return np.array([self.h, self.l1, self.l2, self.l3, self.b0])
 
     def _fk(self, q: np.ndarray) -> np.ndarray:
         r3, p3 = self._arm1(q[..., 0], q[..., 1], q[..., 2])
@@ -304,7 +329,7 @@ class DualPprPrrArm(Arm):
     joint_types: ClassVar[tuple[str, ...]] = (
         (PRISMATIC,) * 2 + (REVOLUTE, PRISMATIC) + (REVOLUTE,) * 2
     )
-    branch_labels: ClassVar[tuple[str, ...]] = ("phi5+", "phi5-")
+    closed_form_labels: ClassVar[tuple[str, ...]] = ("phi5+", "phi5-")
 
     #: Height of link 3's frame, the length of link 1 (the paper's l1 in eq. 13; no value
     #: given): 1.5 m, an overhead carriage.
@@ -330,6 +355,9 @@ class DualPprPrrArm(Arm):
 
     def _check_parameters(self) -> None:
         _require_positive(self, "l1", "l3", "l4", "l5")
+
+    def _kernel_parameters(self) -> np.ndarray:
+        return np.array([self.l1, self.l3, self.l4, self.l5])
 
     def _arm2_offset(self, phi5, phi6):
         """C4 − E and R4 of arm 2 (E = (0, 0, s4))."""
@@ -366,3 +394,98 @@ class DualPprPrrArm(Arm):
         s2 = offset[..., 1] - arm1[..., 1]
         s4 = self.l1 + arm1[..., 2] - offset[..., 2]
         return np.stack([s1, s2, phi3, s4, phi5, phi6], -1)
+
+
+# ------------------------------------------------------------------ single-pose kernels
+def _rrp_rpp_kernel(m, p, out) -> None:
+    """``DualRrpRppArm._ik_candidates`` for one pose (``envs/kinematics/compiled.py``)."""
+    a0, l1, b0, s3_mid = p[0], p[1], p[2], p[3]
+    t0, t1, t2 = m[0, 3], m[1, 3], m[2, 3]
+    # R34ᵀ = Rz(−φ6)·Rx(φ1)·Rz(φ2)
+    rows = zxz_scalar(m[0, 0], m[1, 0], m[2, 0], m[0, 1], m[1, 1], m[2, 1],
+                      m[0, 2], m[1, 2], m[2, 2])
+    singular = np.hypot(m[0, 2], m[1, 2]) < WRIST_SINGULAR_TOL
+    if singular:
+        eps = 1.0 if m[2, 2] >= 0.0 else -1.0
+        theta = math.atan2(eps * m[1, 0], m[0, 0])
+        lateral = m[0, 1] * t0 + m[1, 1] * t1 + m[2, 1] * t2
+        sine = (lateral - b0 + s3_mid * m[0, 1]) / a0
+        base = math.asin(min(1.0, max(-1.0, sine)))
+    for branch in range(2):
+        alpha, beta, gamma = rows[branch]
+        phi1, phi2, phi6 = beta, gamma, -alpha
+        if singular:
+            phi6 = base if branch == 0 else np.pi - base
+            phi2 = eps * (phi6 - theta)
+            phi1 = 0.0 if eps > 0.0 else np.pi
+        c1, s1, c2, s2 = math.cos(phi1), math.sin(phi1), math.cos(phi2), math.sin(phi2)
+        c6, s6 = math.cos(phi6), math.sin(phi6)
+        # R3 = Rx(φ1)·Rz(φ2); C3 without the slide; then both in arm 2's joint frame.
+        r00, r01, r02 = c2, -s2, 0.0
+        r10, r11, r12 = c1 * s2, c1 * c2, -s1
+        r20, r21, r22 = s1 * s2, s1 * c2, c1
+        v0 = a0 + (r00 * t0 + r01 * t1 + r02 * t2)
+        v1 = -l1 * s1 + (r10 * t0 + r11 * t1 + r12 * t2)
+        v2 = l1 * c1 + (r20 * t0 + r21 * t1 + r22 * t2)
+        w0, w1, w2 = c6 * v0 + s6 * v1, c6 * v1 - s6 * v0, v2
+        d0, d1, d2 = c6 * r00 + s6 * r10, c6 * r10 - s6 * r00, r20
+        gap = b0 - w1
+        if abs(d1) < SLIDE_PARALLEL_TOL:
+            if abs(gap) > COINCIDENT_TOL:
+                continue
+            s3 = s3_mid
+        else:
+            s3 = gap / d1
+        out[branch, 0], out[branch, 1], out[branch, 2] = phi1, phi2, s3
+        out[branch, 3], out[branch, 4], out[branch, 5] = phi6, w2 + s3 * d2, w0 + s3 * d0
+
+
+def _rrr_ppp_kernel(m, p, out) -> None:
+    """``DualRrrPppArm._ik_candidates`` for one pose (``envs/kinematics/compiled.py``)."""
+    h, l1, l2, l3, b0 = p[0], p[1], p[2], p[3], p[4]
+    t0, t1, t2 = m[0, 3], m[1, 3], m[2, 3]
+    # R3 = R34ᵀ because the gantry never turns.
+    rows = zxz_scalar(m[0, 0], m[1, 0], m[2, 0], m[0, 1], m[1, 1], m[2, 1],
+                      m[0, 2], m[1, 2], m[2, 2])
+    for branch in range(2):
+        phi1, phi2, phi3 = rows[branch]
+        c1, s1, c2, s2 = math.cos(phi1), math.sin(phi1), math.cos(phi2), math.sin(phi2)
+        c3, s3 = math.cos(phi3), math.sin(phi3)
+        # R2 = Rz(φ1)·Rx(φ2), R3 = R2·Rz(φ3).
+        a00, a01, a02 = c1, -s1 * c2, s1 * s2
+        a10, a11, a12 = s1, c1 * c2, -c1 * s2
+        a20, a21, a22 = 0.0, s2, c2
+        r00, r10, r20 = a00 * c3 + a01 * s3, a10 * c3 + a11 * s3, a20 * c3 + a21 * s3
+        r01, r11, r21 = a01 * c3 - a00 * s3, a11 * c3 - a10 * s3, a21 * c3 - a20 * s3
+        x = l1 * c1 + l2 * a02 + l3 * r00 + (r00 * t0 + r01 * t1 + a02 * t2)
+        y = l1 * s1 + l2 * a12 + l3 * r10 + (r10 * t0 + r11 * t1 + a12 * t2)
+        z = h + l2 * a22 + l3 * r20 + (r20 * t0 + r21 * t1 + a22 * t2)
+        out[branch, 0], out[branch, 1], out[branch, 2] = phi1, phi2, phi3
+        out[branch, 3], out[branch, 4], out[branch, 5] = y - b0, z - h, x
+
+
+def _ppr_prr_kernel(m, p, out) -> None:
+    """``DualPprPrrArm._ik_candidates`` for one pose (``envs/kinematics/compiled.py``)."""
+    l1, l3, l4, l5 = p[0], p[1], p[2], p[3]
+    t0, t1, t2 = m[0, 3], m[1, 3], m[2, 3]
+    # R34 = Rz(−φ3)·Rx(φ5)·Rz(φ6)
+    rows = zxz_scalar(m[0, 0], m[0, 1], m[0, 2], m[1, 0], m[1, 1], m[1, 2],
+                      m[2, 0], m[2, 1], m[2, 2])
+    for branch in range(2):
+        alpha, phi5, phi6 = rows[branch]
+        phi3 = -alpha
+        c3, s3 = math.cos(phi3), math.sin(phi3)
+        c5, s5, c6, s6 = math.cos(phi5), math.sin(phi5), math.cos(phi6), math.sin(phi6)
+        # offset = l5·z4 + l4·x4 with R4 = Rx(φ5)·Rz(φ6); arm1 = Rz(φ3)·(l3 + a, b, c).
+        o0 = l4 * c6
+        o1 = l5 * -s5 + l4 * (c5 * s6)
+        o2 = l5 * c5 + l4 * (s5 * s6)
+        r0 = l3 + t0
+        u0, u1, u2 = c3 * r0 - s3 * t1, s3 * r0 + c3 * t1, t2
+        out[branch, 0], out[branch, 1], out[branch, 2] = o0 - u0, o1 - u1, phi3
+        out[branch, 3], out[branch, 4], out[branch, 5] = l1 + u2 - o2, phi5, phi6
+
+
+DualRrpRppArm._kernel = staticmethod(_rrp_rpp_kernel)
+DualRrrPppArm._kernel = staticmethod(_rrr_ppp_kernel)
+DualPprPrrArm._kernel = staticmethod(_ppr_prr_kernel)

@@ -32,6 +32,7 @@ Derivation and the paper's misprints: ``docs/seed004.md``.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -68,7 +69,7 @@ class RodMechanism(Arm):
     name: ClassVar[str] = "rod_mechanism"
     joint_names: ClassVar[tuple[str, ...]] = ("q3", "q1", "q2")  # base to tip
     joint_types: ClassVar[tuple[str, ...]] = (REVOLUTE,) * 3
-    branch_labels: ClassVar[tuple[str, ...]] = tuple(
+    closed_form_labels: ClassVar[tuple[str, ...]] = tuple(
         f"{side}/{elbow}" for side in ("r+", "r-") for elbow in ("elbow+", "elbow-")
     )
     target: ClassVar[str] = "position"
@@ -142,3 +143,29 @@ class RodMechanism(Arm):
         q2 = np.pi - self.psi - beta
         q3 = np.broadcast_to(q3[..., None], beta.shape)
         return np.stack([q3, q1, q2], -1).reshape((*beta.shape[:-2], 4, 3))
+
+    def _kernel_parameters(self) -> np.ndarray:
+        return np.array([self.lp_prime, self.b, self.a, self.gamma, self.psi])
+
+
+def _rod_kernel(m, p, out) -> None:
+    """``RodMechanism._ik_candidates`` for one target (``envs/kinematics/compiled.py``)."""
+    lpp, b, a, gamma, psi = p[0], p[1], p[2], p[3], p[4]
+    x, y, z = m[0, 3], m[1, 3], m[2, 3]
+    horizontal = np.hypot(x, y)
+    q3_plus = 0.0 if horizontal < ON_AXIS_TOL else math.atan2(x, y)
+    for side in range(2):
+        u = (horizontal if side == 0 else -horizontal) + a / 2
+        q3 = q3_plus if side == 0 else q3_plus + np.pi
+        cos_beta = (u**2 + z**2 - b**2 - lpp**2) / (2.0 * b * lpp)
+        if not abs(cos_beta) <= 1.0 + REACH_TOL:
+            continue
+        bend = math.acos(min(1.0, max(-1.0, cos_beta)))
+        for elbow in range(2):
+            beta = bend if elbow == 0 else -bend
+            block = math.atan2(z, u) - math.atan2(lpp * math.sin(beta), b + lpp * math.cos(beta))
+            row = 2 * side + elbow
+            out[row, 0], out[row, 1], out[row, 2] = q3, block - gamma, np.pi - psi - beta
+
+
+RodMechanism._kernel = staticmethod(_rod_kernel)

@@ -114,22 +114,6 @@ def validate_rotation(rotation: np.ndarray, name: str = "rotation") -> None:
         raise ValueError(f"{name} rotation block is a reflection (det < 0), not a rotation")
 
 
-def validate_rotation_scalar(m: list[list[float]], name: str = "rotation") -> None:
-    """``validate_rotation`` for one (≥3, ≥3) nested list of floats (no numpy overhead)."""
-    x = (m[0][0], m[1][0], m[2][0])
-    y = (m[0][1], m[1][1], m[2][1])
-    z = (m[0][2], m[1][2], m[2][2])
-    for u, v, expected in ((x, x, 1.0), (y, y, 1.0), (z, z, 1.0), (x, y, 0.0), (y, z, 0.0),
-                           (z, x, 0.0)):
-        if abs(u[0] * v[0] + u[1] * v[1] + u[2] * v[2] - expected) > ORTHONORMAL_TOL:
-            raise ValueError(
-                f"{name} rotation block is not orthonormal (tolerance {ORTHONORMAL_TOL:g})"
-            )
-    cross = (x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0])
-    if cross[0] * z[0] + cross[1] * z[1] + cross[2] * z[2] < 0.0:
-        raise ValueError(f"{name} rotation block is a reflection (det < 0), not a rotation")
-
-
 def _dot(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     # Spelled out: a reduction over a length-3 axis is slow in numpy for big batches.
     return u[..., 0] * v[..., 0] + u[..., 1] * v[..., 1] + u[..., 2] * v[..., 2]

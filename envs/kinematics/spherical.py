@@ -13,6 +13,7 @@ elevation range by construction. Branches (2): wrist + / − (sign of φ4).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -20,7 +21,7 @@ import numpy as np
 
 from .arm import PRISMATIC, REVOLUTE, Arm
 from .rotations import homogeneous, premultiply_rotation, rot_x, rot_z
-from .wrist import solve_with_wrist, wrist_rotation
+from .wrist import put_wrist_rows, solve_with_wrist, wrist_rotation
 
 _DEG = np.pi / 180.0
 
@@ -36,7 +37,7 @@ class SphericalArm(Arm):
     joint_types: ClassVar[tuple[str, ...]] = (
         REVOLUTE, REVOLUTE, PRISMATIC, REVOLUTE, REVOLUTE, REVOLUTE,
     )
-    branch_labels: ClassVar[tuple[str, ...]] = ("wrist+", "wrist-")
+    closed_form_labels: ClassVar[tuple[str, ...]] = ("wrist+", "wrist-")
 
     #: Shoulder height O0O1 (m).
     l1: float = 0.9
@@ -77,3 +78,27 @@ class SphericalArm(Arm):
         turned = premultiply_rotation(-phi1, pose[..., :3, :3], axis=2)
         r_wrist = premultiply_rotation(-phi2, turned, axis=0)
         return solve_with_wrist(positioning, r_wrist[..., None, :, :])
+
+    def _kernel_parameters(self) -> np.ndarray:
+        return np.array([self.l1])
+
+
+def _spherical_kernel(m, p, out) -> None:
+    """``SphericalArm._ik_candidates`` for one pose (``envs/kinematics/compiled.py``)."""
+    x, y, z = m[0, 3], m[1, 3], m[2, 3]
+    phi1 = math.atan2(-x, y)
+    reach, height = np.hypot(x, y), z - p[0]
+    phi2 = math.atan2(height, reach)
+    # T = Rz(−φ1)·R, then W = Rx(−φ2)·T, row by row as premultiply_rotation forms them.
+    c, s = math.cos(-phi1), math.sin(-phi1)
+    t00, t01, t02 = c * m[0, 0] - s * m[1, 0], c * m[0, 1] - s * m[1, 1], c * m[0, 2] - s * m[1, 2]
+    t10, t11, t12 = s * m[0, 0] + c * m[1, 0], s * m[0, 1] + c * m[1, 1], s * m[0, 2] + c * m[1, 2]
+    t20, t21, t22 = m[2, 0], m[2, 1], m[2, 2]
+    c, s = math.cos(-phi2), math.sin(-phi2)
+    w11 = c * t11 - s * t21
+    w20, w21, w22 = s * t10 + c * t20, s * t11 + c * t21, s * t12 + c * t22
+    put_wrist_rows(out, 0, phi1, phi2, np.hypot(reach, height),
+                   t00, t01, t02, w11, w20, w21, w22)
+
+
+SphericalArm._kernel = staticmethod(_spherical_kernel)

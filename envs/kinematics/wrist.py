@@ -104,12 +104,12 @@ def _wrist_entries(r_wrist: np.ndarray) -> tuple[np.ndarray, ...]:
 
 
 def wrist_branches_scalar(r00, r01, r02, r11, r20, r21, r22) -> tuple[tuple[float, ...], ...]:
-    """``wrist_branches`` for one rotation given as Python floats: ((a, b, c), (a', b', c')).
+    """``wrist_branches`` for one rotation given as floats: ((a, b, c), (a', b', c')).
 
-    The same formulas, in ``math`` instead of numpy: on a single pose numpy's per-call
-    overhead costs ten times the arithmetic. Tests hold the two to the same results.
+    The same formulas, on floats with ``math``: the kernels of the compiled single-pose
+    path call it (``envs/kinematics/compiled.py``). Tests hold the two to the same results.
     """
-    sin_b = _sqrt(r01 * r01 + r21 * r21)
+    sin_b = math.sqrt(r01 * r01 + r21 * r21)
     if sin_b < WRIST_SINGULAR_TOL:
         folded = r11 < 0.0
         a = 0.5 * math.atan2(-r02 if folded else r02, r00)
@@ -117,11 +117,20 @@ def wrist_branches_scalar(r00, r01, r02, r11, r20, r21, r22) -> tuple[tuple[floa
         ca, sa = math.cos(a), math.sin(a)
         c = math.atan2(ca * r02 - sa * r22, ca * r00 - sa * r20)
         return (a, b, c), (a, -b, c)
-    b = _atan2(sin_b, r11)
-    a = _atan2(r01, r21)
+    b = math.atan2(sin_b, r11)
+    a = math.atan2(r01, r21)
     ca, sa = r21 / sin_b, r01 / sin_b
-    c = _atan2(ca * r02 - sa * r22, ca * r00 - sa * r20)
-    return (a, b, c), (a - _PI if a > 0.0 else a + _PI, -b, c - _PI if c > 0.0 else c + _PI)
+    c = math.atan2(ca * r02 - sa * r22, ca * r00 - sa * r20)
+    flipped_a = a - math.pi if a > 0.0 else a + math.pi
+    flipped_c = c - math.pi if c > 0.0 else c + math.pi
+    return (a, b, c), (flipped_a, -b, flipped_c)
 
 
-_sqrt, _atan2, _PI = math.sqrt, math.atan2, math.pi
+def put_wrist_rows(out, row, q1, q2, q3, r00, r01, r02, r11, r20, r21, r22) -> None:
+    """Write the rows (q1, q2, q3, wrist +) and (q1, q2, q3, wrist −) of a six-joint arm
+    into ``out[row]`` and ``out[row + 1]`` (a kernel of the single-pose path)."""
+    plus, minus = wrist_branches_scalar(r00, r01, r02, r11, r20, r21, r22)
+    out[row, 0], out[row, 1], out[row, 2] = q1, q2, q3
+    out[row, 3], out[row, 4], out[row, 5] = plus[0], plus[1], plus[2]
+    out[row + 1, 0], out[row + 1, 1], out[row + 1, 2] = q1, q2, q3
+    out[row + 1, 3], out[row + 1, 4], out[row + 1, 5] = minus[0], minus[1], minus[2]

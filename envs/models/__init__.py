@@ -14,7 +14,7 @@ import os
 # Offscreen rendering needs a GL backend chosen before mujoco is first imported.
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-from . import builders_dual, builders_rod  # noqa: F401  (register their tree builders)
+from . import builders_dual, builders_industrial, builders_rod  # noqa: F401  (register builders)
 from .builders import TREE_BUILDERS, ArmTree, register_tree_builder
 from .collision import (
     DEFAULT_RESOLUTION,

@@ -426,6 +426,12 @@ def test_batches_match_single_poses(arm):
     assert solutions.shape == (2, 3, 2, 6) and valid.shape == (2, 3, 2)
     for i in range(2):
         for j in range(3):
+            # Through the numpy solver one pose is its batch row, bit for bit ...
+            one, one_valid = arm.ik(pose[i, j][None])
+            np.testing.assert_array_equal(one[0], solutions[i, j])
+            np.testing.assert_array_equal(one_valid[0], valid[i, j])
+            # ... and through the compiled single-pose path the same to 1e-12 (libm vs
+            # numpy's SIMD arctan2 differ by an ulp; test_single_pose.py).
             single, single_valid = arm.ik(pose[i, j])
-            np.testing.assert_array_equal(single, solutions[i, j])
+            np.testing.assert_allclose(single, solutions[i, j], rtol=0, atol=1e-12)
             np.testing.assert_array_equal(single_valid, valid[i, j])

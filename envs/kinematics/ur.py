@@ -1,0 +1,372 @@
+"""Universal Robots arms (non-spherical wrist): UR's DH chain, 8 closed-form branches.
+
+Forward kinematics is UR's standard Denavit–Hartenberg chain to the tool0 frame,
+
+    T = A1·A2·…·A6,   A_i = Rz(θ_i)·Tz(d_i)·Tx(a_i)·Rx(α_i),
+    α = (π/2, 0, 0, π/2, −π/2, 0),  a = (0, a2, a3, 0, 0, 0),  d = (d1, 0, 0, d4, d5, d6),
+
+with UR's published values (a2, a3 < 0 by UR's convention) and the joint values the
+controller shows: no offsets, no sign changes.
+
+Inverse kinematics after Hawkins (2013), "Analytic inverse kinematics for the Universal
+Robots UR-5/UR-10 arms", re-derived in ``docs/kinematics_opw_ur.md``. With u = (sin θ1,
+−cos θ1, 0) the common axis direction of joints 2, 3, 4 and p5 = p − d6·z6 the wrist point
+(where the joint 5 and 6 axes meet):
+
+    p5·u = d4                                  -> θ1 (two: shoulder front / back)
+    z6·u = cos θ5,  (x6·u, y6·u) = sin θ5·(cos θ6, −sin θ6)
+                                               -> θ5 (two: wrist + / −), θ6
+    p4 = p5 + d5·(sin θ6·x6 + cos θ6·y6)       -> planar 2R in frame 1: θ2, θ3 (elbow up / down)
+    x4 = R·(cos θ5 cos θ6, −cos θ5 sin θ6, −sin θ5)  -> θ2 + θ3 + θ4
+
+Branches (8, in this order): ``front`` / ``back`` × ``elbow-up`` / ``elbow-down`` ×
+``wrist+`` / ``wrist-``.
+
+* front: the wrist point lies on the side of the base axis the upper arm points to at
+  θ2 = 0, i.e. sign(a2)·(p5·x1) ≥ 0 with x1 = (cos θ1, sin θ1, 0) (for UR's a2 < 0: p5 on
+  the −x1 side); back: the other θ1.
+* elbow-up: in the arm plane (reach measured from the base axis towards p5, height up),
+  the elbow (frame 2 origin) lies above the line from the shoulder (frame 1 origin) to the
+  end of the forearm (frame 3 origin).
+* wrist+: sin θ5 ≥ 0.
+
+Singular cases give finite, FK-exact rows: sin θ5 = 0 (joints 2, 3, 4 and 6 parallel:
+θ6 is free and chosen so that the elbow reaches best, ``singular_wrist_turn``; both wrist
+branches coincide), the shoulder singularity (p5 on the
+cylinder p5·u = d4 with no in-plane reach, |d4| = ρ: both shoulder branches coincide),
+stretched or folded elbow (both elbow branches coincide).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from .arm import REVOLUTE, Arm
+from .opw import _LABELS, _deg, _limits_deg
+from .wrist import WRIST_SINGULAR_TOL
+
+#: |cos θ3| up to 1 + this is reachable; the wrist point may lie this far (m) inside the
+#: cylinder of radius d4 about the base axis (rounding of an FK pose on its boundary).
+REACH_TOL = 1e-9
+
+# α of UR's DH table as exact cosines and sines (the chain is the same as with π/2 in
+# floating point, without the 6e-17 cross terms).
+_COS_ALPHA = (0.0, 1.0, 1.0, 0.0, 0.0, 1.0)
+_SIN_ALPHA = (1.0, 0.0, 0.0, 1.0, -1.0, 0.0)
+
+#: ±180° everywhere (the generic ``ur``: no turns); UR's own limits (``ur_description``
+#: joint_limits.yaml, degrees): ±360° on every joint but the elbow, ±180°.
+_FULL_CIRCLE = _limits_deg(*[(-180.0, 180.0)] * 6)
+_UR_LIMITS = _limits_deg(
+    (-360.0, 360.0), (-360.0, 360.0), (-180.0, 180.0), (-360.0, 360.0), (-360.0, 360.0),
+    (-360.0, 360.0),
+)
+#: The upright "ready" pose of UR's examples, tool pointing down.
+_READY = _deg(0.0, -90.0, 90.0, -90.0, -90.0, 0.0)
+
+_SHOULDER = np.array([1.0, -1.0])  # front, back: the sign of sign(a2)·(p5·x1)
+_WRIST = np.array([1.0, -1.0])  # wrist+, wrist−: the sign of sin θ5
+
+
+def dh_transform(theta, d: float, a: float, cos_alpha: float, sin_alpha: float) -> np.ndarray:
+    """Rz(θ)·Tz(d)·Tx(a)·Rx(α), batched over θ (…,) -> (…, 4, 4)."""
+    theta = np.asarray(theta, dtype=np.float64)
+    c, s = np.cos(theta), np.sin(theta)
+    out = np.zeros((*theta.shape, 4, 4))
+    out[..., 0, 0], out[..., 0, 1], out[..., 0, 2], out[..., 0, 3] = (
+        c, -s * cos_alpha, s * sin_alpha, a * c)
+    out[..., 1, 0], out[..., 1, 1], out[..., 1, 2], out[..., 1, 3] = (
+        s, c * cos_alpha, -c * sin_alpha, a * s)
+    out[..., 2, 1], out[..., 2, 2], out[..., 2, 3] = sin_alpha, cos_alpha, d
+    out[..., 3, 3] = 1.0
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class UrArm(Arm):
+    """Any Universal Robots arm: enter its DH d1, a2, a3, d4, d5, d6 and limits.
+
+    Defaults: the UR5e's DH values with every joint limited to ±180° (8 branches, no turns);
+    ``ur5e`` and ``ur10e`` carry UR's real limits."""
+
+    name: ClassVar[str] = "ur"
+    joint_names: ClassVar[tuple[str, ...]] = (
+        "base", "shoulder", "elbow", "wrist1", "wrist2", "wrist3",
+    )
+    joint_types: ClassVar[tuple[str, ...]] = (REVOLUTE,) * 6
+    closed_form_labels: ClassVar[tuple[str, ...]] = _LABELS
+
+    #: Base to shoulder axis, m (DH d1, > 0).
+    d1: float = 0.1625
+    #: Upper arm, m (DH a2; UR's tables give it negative; non-zero).
+    a2: float = -0.425
+    #: Forearm, m (DH a3; negative in UR's tables; non-zero).
+    a3: float = -0.3922
+    #: Shoulder offset along the joint 2–4 axes, m (DH d4, > 0).
+    d4: float = 0.1333
+    #: Wrist 1 to wrist 2, m (DH d5, > 0).
+    d5: float = 0.0997
+    #: Wrist 2 to the tool flange (tool0), m (DH d6, > 0).
+    d6: float = 0.0996
+    joint_limits: np.ndarray = _FULL_CIRCLE
+    #: The upright "ready" pose of UR's examples, tool pointing down: (0, −90°, 90°, −90°,
+    #: −90°, 0); clear of the wrist (sin θ5 = −1) and shoulder singularities.
+    home: np.ndarray = _READY
+
+    def _check_parameters(self) -> None:
+        for label in ("d1", "d4", "d5", "d6"):
+            value = getattr(self, label)
+            if not value > 0.0:
+                raise ValueError(f"{self.name}: {label} must be positive, got {value}")
+        for label in ("a2", "a3"):
+            if getattr(self, label) == 0.0:
+                raise ValueError(f"{self.name}: {label} must be non-zero (UR's tables: negative)")
+
+    @property
+    def dh(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """(d, a) of the six DH rows."""
+        d = (self.d1, 0.0, 0.0, self.d4, self.d5, self.d6)
+        return d, (0.0, self.a2, self.a3, 0.0, 0.0, 0.0)
+
+    def frames(self, q) -> np.ndarray:
+        """(…, 7, 4, 4): the base frame and frames 1–6 (tool0) of UR's DH chain."""
+        q = np.asarray(q, dtype=np.float64)
+        d, a = self.dh
+        pose = np.broadcast_to(np.eye(4), (*q.shape[:-1], 4, 4))
+        out = [pose]
+        for joint in range(6):
+            pose = pose @ dh_transform(q[..., joint], d[joint], a[joint],
+                                       _COS_ALPHA[joint], _SIN_ALPHA[joint])
+            out.append(pose)
+        return np.stack(out, axis=-3)
+
+    def _fk(self, q: np.ndarray) -> np.ndarray:
+        d, a = self.dh
+        pose = dh_transform(q[..., 0], d[0], a[0], _COS_ALPHA[0], _SIN_ALPHA[0])
+        for joint in range(1, 6):
+            pose = pose @ dh_transform(q[..., joint], d[joint], a[joint],
+                                       _COS_ALPHA[joint], _SIN_ALPHA[joint])
+        return pose
+
+    def _ik_candidates(self, pose: np.ndarray) -> list[np.ndarray]:
+        d1, a2, a3, d4, d5, d6 = self.d1, self.a2, self.a3, self.d4, self.d5, self.d6
+        n = [[pose[..., i, j] for j in range(3)] for i in range(3)]
+        p5x = pose[..., 0, 3] - d6 * n[0][2]
+        p5y = pose[..., 1, 3] - d6 * n[1][2]
+        p5z = pose[..., 2, 3] - d6 * n[2][2]
+
+        # θ1: p5 = X·x1 + d4·u with X = ±√(ρ² − d4²) the in-plane reach.
+        rho2 = p5x * p5x + p5y * p5y
+        reach = np.sqrt(np.maximum(rho2 - d4 * d4, 0.0))
+        reach = np.where(np.sqrt(rho2) >= d4 - REACH_TOL, reach, np.nan)
+        x = reach[..., None] * (math.copysign(1.0, a2) * _SHOULDER)  # (…, shoulder)
+        num_s = x * p5y[..., None] + d4 * p5x[..., None]
+        num_c = x * p5x[..., None] - d4 * p5y[..., None]
+        theta1 = np.arctan2(num_s, num_c)
+        norm1 = np.sqrt(num_s * num_s + num_c * num_c)
+        cos1, sin1 = num_c / norm1, num_s / norm1  # norm1 ≥ d4 ρ > 0 when reachable
+
+        # θ5, θ6 from the components of u = (sin θ1, −cos θ1, 0) in frame 6.
+        def dot_u(column: int) -> np.ndarray:
+            return n[0][column][..., None] * sin1 - n[1][column][..., None] * cos1
+
+        xu, yu, zu = dot_u(0), dot_u(1), dot_u(2)
+        sin5_abs = np.sqrt(xu * xu + yu * yu)[..., None]  # (…, shoulder, 1)
+        sin5 = sin5_abs * _WRIST  # (…, shoulder, wrist)
+        cos5 = np.broadcast_to(zu[..., None], sin5.shape)
+        theta5 = np.arctan2(sin5, cos5)
+        singular = sin5_abs < WRIST_SINGULAR_TOL
+        safe = np.where(singular, 1.0, sin5_abs)
+        cos6 = xu[..., None] * _WRIST / safe
+        sin6 = -yu[..., None] * _WRIST / safe
+        if np.any(singular):
+            # Joints 2, 3, 4, 6 parallel: θ6 is free. It is chosen so that the elbow can
+            # reach frame 4 best (``singular_wrist_turn``); both wrist rows coincide.
+            c6, s6 = singular_wrist_turn(
+                cos1 * p5x[..., None] + sin1 * p5y[..., None], (p5z - d1)[..., None],
+                cos1 * n[0][0][..., None] + sin1 * n[1][0][..., None], n[2][0][..., None],
+                cos1 * n[0][1][..., None] + sin1 * n[1][1][..., None], n[2][1][..., None],
+                a2, a3, d5,
+            )
+            cos6 = np.where(singular, c6[..., None], cos6)
+            sin6 = np.where(singular, s6[..., None], sin6)
+        theta6 = np.arctan2(sin6, cos6)
+
+        # Frame 4's origin and x axis.
+        def column(j: int) -> list[np.ndarray]:
+            return [n[i][j][..., None, None] for i in range(3)]
+
+        x6, y6, z6 = column(0), column(1), column(2)
+        p4 = [
+            p[..., None, None] + d5 * (sin6 * x6[i] + cos6 * y6[i])
+            for i, p in enumerate((p5x, p5y, p5z))
+        ]
+        x4 = [cos5 * cos6 * x6[i] - cos5 * sin6 * y6[i] - sin5 * z6[i] for i in range(3)]
+        cos1, sin1 = cos1[..., None], sin1[..., None]
+        # In frame 1 (x1 horizontal, y1 = up, z1 = u): the planar chain of a2, a3.
+        px = cos1 * p4[0] + sin1 * p4[1]
+        py = p4[2] - d1
+        theta234 = np.arctan2(x4[2], cos1 * x4[0] + sin1 * x4[1])
+
+        cos3 = (px * px + py * py - a2 * a2 - a3 * a3) / (2.0 * a2 * a3)
+        cos3 = np.where(np.abs(cos3) <= 1.0 + REACH_TOL, np.clip(cos3, -1.0, 1.0), np.nan)
+        cos3 = cos3[..., None, :]  # (…, shoulder, elbow, wrist)
+        elbow = _elbow_sign(a3)[..., None]  # (shoulder, elbow, 1)
+        sin3 = np.sqrt(1.0 - cos3 * cos3) * elbow
+        theta3 = np.arctan2(sin3, cos3)
+        along, across = a2 + a3 * cos3, a3 * sin3
+        px, py = px[..., None, :], py[..., None, :]
+        theta2 = np.arctan2(along * py - across * px, along * px + across * py)
+        theta4 = theta234[..., None, :] - theta2 - theta3
+
+        shape = theta3.shape
+        batch = shape[:-3]
+        return [
+            np.broadcast_to(theta1[..., None, None], shape).reshape((*batch, 8)),
+            theta2.reshape((*batch, 8)),
+            theta3.reshape((*batch, 8)),
+            theta4.reshape((*batch, 8)),
+            np.broadcast_to(theta5[..., None, :], shape).reshape((*batch, 8)),
+            np.broadcast_to(theta6[..., None, :], shape).reshape((*batch, 8)),
+        ]
+
+    def _kernel_parameters(self) -> np.ndarray:
+        return np.array([self.d1, self.a2, self.a3, self.d4, self.d5, self.d6])
+
+
+def singular_wrist_turn(reach, height, x6_reach, x6_height, y6_reach, y6_height, a2, a3, d5):
+    """(cos θ6, sin θ6) at sin θ5 = 0, where θ6 is free (arrays or floats).
+
+    With the tool axis along the joint 2–4 axes, frame 4's origin p4 = p5 − d5·z4 can be any
+    point of the circle of radius d5 about the wrist point p5 in the arm plane (z4 ⟂ u).
+    The elbow reaches distances [| |a2| − |a3| |, |a2| + |a3|] from the shoulder; p4 is put
+    at the distance r* closest to the middle of that range, max(|a2|, |a3|), among those the
+    circle offers ([ρ − d5, ρ + d5], ρ = |p5 − shoulder|), on the side z4 = (cos φ, sin φ)
+    with φ = atan2(height, reach) + arccos(…) (in frame 1: reach along x1, height up). So a
+    reachable singular pose always has solutions, and θ6 follows from z4 = −(sin θ6·x6 +
+    cos θ6·y6). The arguments are p5 and the in-plane components of x6, y6 in frame 1.
+    """
+    rho = np.hypot(reach, height)
+    middle = max(abs(a2), abs(a3))
+    target = np.minimum(np.maximum(middle, rho - d5), rho + d5)
+    ratio = (rho * rho + d5 * d5 - target * target) / (2.0 * d5 * np.where(rho > 0.0, rho, 1.0))
+    phi = np.arctan2(height, reach) + np.arccos(np.minimum(np.maximum(ratio, -1.0), 1.0))
+    z_reach, z_height = np.cos(phi), np.sin(phi)
+    sin6 = -(z_reach * x6_reach + z_height * x6_height)
+    cos6 = -(z_reach * y6_reach + z_height * y6_height)
+    norm = np.hypot(sin6, cos6)
+    return cos6 / norm, sin6 / norm
+
+
+def _elbow_sign(a3: float) -> np.ndarray:
+    """Sign of sin θ3 for (shoulder, elbow): elbow up is sin θ3 = −sign(a3) in front and
+    +sign(a3) behind (``docs/kinematics_opw_ur.md``)."""
+    s = math.copysign(1.0, a3)
+    return np.array([[-s, s], [s, -s]])
+
+
+def _ur_kernel(m, p, out) -> None:
+    """``UrArm._ik_candidates`` for one pose, formula for formula, on floats (the compiled
+    single-pose path, ``envs/kinematics/compiled.py``)."""
+    d1, a2, a3, d4, d5, d6 = p[0], p[1], p[2], p[3], p[4], p[5]
+    p5x = m[0, 3] - d6 * m[0, 2]
+    p5y = m[1, 3] - d6 * m[1, 2]
+    p5z = m[2, 3] - d6 * m[2, 2]
+    rho2 = p5x * p5x + p5y * p5y
+    if not math.sqrt(rho2) >= d4 - REACH_TOL:
+        return
+    reach = math.sqrt(max(rho2 - d4 * d4, 0.0))
+    s_a2, s_a3 = math.copysign(1.0, a2), math.copysign(1.0, a3)
+    for shoulder in range(2):
+        side = 1.0 if shoulder == 0 else -1.0
+        x = reach * (s_a2 * side)
+        num_s, num_c = x * p5y + d4 * p5x, x * p5x - d4 * p5y
+        theta1 = math.atan2(num_s, num_c)
+        norm1 = math.sqrt(num_s * num_s + num_c * num_c)
+        cos1, sin1 = num_c / norm1, num_s / norm1
+        xu = m[0, 0] * sin1 - m[1, 0] * cos1
+        yu = m[0, 1] * sin1 - m[1, 1] * cos1
+        zu = m[0, 2] * sin1 - m[1, 2] * cos1
+        sin5_abs = math.sqrt(xu * xu + yu * yu)
+        singular = sin5_abs < WRIST_SINGULAR_TOL
+        for wrist in range(2):
+            w = 1.0 if wrist == 0 else -1.0
+            sin5, cos5 = sin5_abs * w, zu
+            theta5 = math.atan2(sin5, cos5)
+            if singular:
+                cos6, sin6 = singular_wrist_turn(
+                    cos1 * p5x + sin1 * p5y, p5z - d1,
+                    cos1 * m[0, 0] + sin1 * m[1, 0], m[2, 0],
+                    cos1 * m[0, 1] + sin1 * m[1, 1], m[2, 1],
+                    a2, a3, d5,
+                )
+            else:
+                cos6, sin6 = xu * w / sin5_abs, -yu * w / sin5_abs
+            theta6 = math.atan2(sin6, cos6)
+            p4x = p5x + d5 * (sin6 * m[0, 0] + cos6 * m[0, 1])
+            p4y = p5y + d5 * (sin6 * m[1, 0] + cos6 * m[1, 1])
+            p4z = p5z + d5 * (sin6 * m[2, 0] + cos6 * m[2, 1])
+            x4x = cos5 * cos6 * m[0, 0] - cos5 * sin6 * m[0, 1] - sin5 * m[0, 2]
+            x4y = cos5 * cos6 * m[1, 0] - cos5 * sin6 * m[1, 1] - sin5 * m[1, 2]
+            x4z = cos5 * cos6 * m[2, 0] - cos5 * sin6 * m[2, 1] - sin5 * m[2, 2]
+            px = cos1 * p4x + sin1 * p4y
+            py = p4z - d1
+            theta234 = math.atan2(x4z, cos1 * x4x + sin1 * x4y)
+            cos3 = (px * px + py * py - a2 * a2 - a3 * a3) / (2.0 * a2 * a3)
+            if not abs(cos3) <= 1.0 + REACH_TOL:
+                continue
+            cos3 = min(1.0, max(-1.0, cos3))
+            for elbow in range(2):
+                sign = (-s_a3 if elbow == 0 else s_a3) * side
+                sin3 = math.sqrt(1.0 - cos3 * cos3) * sign
+                theta3 = math.atan2(sin3, cos3)
+                along, across = a2 + a3 * cos3, a3 * sin3
+                theta2 = math.atan2(along * py - across * px, along * px + across * py)
+                row = 4 * shoulder + 2 * elbow + wrist
+                out[row, 0], out[row, 1], out[row, 2] = theta1, theta2, theta3
+                out[row, 3], out[row, 4], out[row, 5] = theta234 - theta2 - theta3, theta5, theta6
+
+
+UrArm._kernel = staticmethod(_ur_kernel)
+
+
+@dataclass(frozen=True, eq=False)
+class Ur5e(UrArm):
+    """UR5e: DH values from Universal Robots' "DH parameters for calculations of kinematics
+    and dynamics" table (UR e-Series); limits as UR's ROS description
+    (``ur_description/config/ur5e/joint_limits.yaml``): ±360° on every joint, the elbow
+    ±180°."""
+
+    name: ClassVar[str] = "ur5e"
+
+    d1: float = 0.1625
+    a2: float = -0.425
+    a3: float = -0.3922
+    d4: float = 0.1333
+    d5: float = 0.0997
+    d6: float = 0.0996
+    #: ±360°, the elbow ±180° (degrees from UR's description, converted with np.deg2rad).
+    joint_limits: np.ndarray = _UR_LIMITS
+    home: np.ndarray = _READY
+
+
+@dataclass(frozen=True, eq=False)
+class Ur10e(UrArm):
+    """UR10e: DH values from Universal Robots' DH table (UR e-Series); limits as
+    ``ur_description/config/ur10e/joint_limits.yaml``: ±360°, the elbow ±180°."""
+
+    name: ClassVar[str] = "ur10e"
+
+    d1: float = 0.1807
+    a2: float = -0.6127
+    a3: float = -0.57155
+    d4: float = 0.17415
+    d5: float = 0.11985
+    d6: float = 0.11655
+    #: ±360°, the elbow ±180° (degrees from UR's description, converted with np.deg2rad).
+    joint_limits: np.ndarray = _UR_LIMITS
+    home: np.ndarray = _READY
