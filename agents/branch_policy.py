@@ -5,10 +5,13 @@ each of the K output logits separately, which of its inputs describe that branch
 choice is the same question asked K times ("how good is going to this candidate?"), so
 this policy asks it once: for each branch k of the next waypoint it gathers that branch's
 own slice of the observation (its normalised configuration, validity, endpoint collision,
-travel and path collision from where the arm stands; with lookahead ≥ 1 its travel to
-every candidate of the waypoint after, and that waypoint's validity and endpoint flags),
-appends the shared context (the current configuration and progress), and maps it through
-one MLP to a hidden vector h_k. The logit of branch k is a linear read-out of h_k; the value
+travel and path collision from where the arm stands, and what it leads to: with the
+compact observation its least travel onwards; with the ladder observation and lookahead ≥
+1 its travel to every candidate of the waypoint after, and that waypoint's validity and
+endpoint flags), appends the shared context (the current configuration and progress, and
+with the compact observation an order-free summary of each later slot: the share of
+valid branches, the least travel into one, the share of those that are free), and maps it
+through one MLP to a hidden vector h_k. The logit of branch k is a linear read-out of h_k; the value
 function sees the mean of the h_k (and so does not depend on the order of the branches).
 The actor is thus equivariant to the order of the branches.
 
@@ -56,21 +59,56 @@ class BranchFeatures(BaseFeaturesExtractor):
             index["slot0/path_collision"].view(k, 1),
         ]
         shared = [index["q"], index["progress"]]
-        if "slot1/travel" in index:
+        #: Compact observations (O(K)): each branch's least travel onwards, and per later
+        #: slot a pooled summary (below) instead of its K × K travel block.
+        self.compact = "slot0/travel_out" in index
+        self.later = 0  # later slots summarised (compact observations)
+        if self.compact:
+            own.append(index["slot0/travel_out"].view(k, 1))
+            h = 1
+            while f"slot{h}/present" in index:
+                shared.append(index[f"slot{h}/present"])
+                self.register_buffer(f"slot{h}_valid", index[f"slot{h}/valid"],
+                                     persistent=False)
+                self.register_buffer(f"slot{h}_in", index[f"slot{h}/travel_in"],
+                                     persistent=False)
+                self.register_buffer(f"slot{h}_hit", index[f"slot{h}/endpoint_collision"],
+                                     persistent=False)
+                h += 1
+            self.later = h - 1
+        elif "slot1/travel" in index:
             own.append(index["slot1/travel"].view(k, k))  # row k: from branch k onwards
             shared += [index["slot1/present"], index["slot1/valid"],
                        index["slot1/endpoint_collision"]]
         self.register_buffer("own", torch.cat(own, dim=1), persistent=False)
         self.register_buffer("shared", torch.cat(shared), persistent=False)
-        width = self.own.shape[1] + len(self.shared)
+        width = self.own.shape[1] + len(self.shared) + (3 * self.later if self.compact else 0)
         self.embed = nn.Sequential(
             nn.Linear(width, hidden), nn.Tanh(), nn.Linear(hidden, hidden), nn.Tanh()
         )
         self.score = nn.Linear(hidden, 1)
 
+    def _slot_summaries(self, observations: torch.Tensor) -> list[torch.Tensor]:
+        """Per later slot, order-free: the share of valid branches, the least travel into
+        a valid one, and the share of valid ones whose configuration is free."""
+        summaries = []
+        for h in range(1, self.later + 1):
+            valid = observations[:, getattr(self, f"slot{h}_valid")]
+            travel_in = observations[:, getattr(self, f"slot{h}_in")]
+            free = (1.0 - observations[:, getattr(self, f"slot{h}_hit")]) * valid
+            count = valid.sum(dim=1, keepdim=True)
+            least = torch.where(valid > 0, travel_in, torch.ones_like(travel_in)).amin(
+                dim=1, keepdim=True)
+            summaries += [count / self.k, least, free.sum(dim=1, keepdim=True) / count.clamp(
+                min=1.0)]
+        return summaries
+
     def forward(self, observations: torch.Tensor) -> torch.Tensor:
         per_branch = observations[:, self.own]  # (B, K, own)
-        context = observations[:, self.shared].unsqueeze(1).expand(-1, self.k, -1)
+        context = observations[:, self.shared]
+        if self.compact and self.later:
+            context = torch.cat([context, *self._slot_summaries(observations)], dim=1)
+        context = context.unsqueeze(1).expand(-1, self.k, -1)
         embedded = self.embed(torch.cat([per_branch, context], dim=-1))  # (B, K, hidden)
         return torch.cat([self.score(embedded).squeeze(-1), embedded.mean(dim=1)], dim=-1)
 

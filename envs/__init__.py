@@ -31,6 +31,9 @@ ENV_SPECS: dict[str, dict] = {
     "IKBranch/DualPPRPRR-v0": {"arm": "dual_ppr_prr", "scene": "empty", "task": "relative_motion"},
     "IKBranch/RodMechanism-v1": {"arm": "rod_mechanism", "scene": "empty", "task": "random"},
 }
+# The v0/v1 ids observe the ladder layout their published models were trained on.
+for _kwargs in ENV_SPECS.values():
+    _kwargs.setdefault("observation", "ladder")
 ENV_IDS: tuple[str, ...] = tuple(ENV_SPECS)
 
 for _env_id, _kwargs in ENV_SPECS.items():

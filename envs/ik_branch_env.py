@@ -108,6 +108,7 @@ class IKBranchEnv(gym.Env):
     collision_resolution  0.01                    path-check clearance and step (m)
     scene_seed            0                       seed of the random-clutter scene
     arm_params            None                    dict of arm parameters (``make_arm``)
+    observation           "compact"               "compact" (O(K)) or "ladder" (O(K²), v0/v1)
     render_mode           None                    None or "rgb_array"
     width                 480                     rendered frame width (px)
     height                360                     rendered frame height (px)
@@ -151,6 +152,7 @@ class IKBranchEnv(gym.Env):
         collision_resolution: float = 0.01,
         scene_seed: int = 0,
         arm_params: dict[str, Any] | None = None,
+        observation: str = "compact",
         render_mode: str | None = None,
         width: int = 480,
         height: int = 360,
@@ -211,7 +213,9 @@ class IKBranchEnv(gym.Env):
             invalid_penalty=invalid_penalty,
             terminate_on_collision=terminate_on_collision,
         )
-        self._observations = ObservationBuilder(self.arm, lookahead, self.pricer.travel_scale)
+        self._observations = ObservationBuilder(
+            self.arm, lookahead, self.pricer.travel_scale, observation
+        )
         self.observation_layout = self._observations.layout
         self.observation_space = spaces.Box(
             -1.0, 1.0, shape=(self._observations.size,), dtype=np.float32

@@ -1,15 +1,20 @@
 """Observation assembly: the flat ``Box(-1, 1)`` vector of ``IKBranchEnv`` and its layout.
 
-Contents (joint values normalised to [−1, 1] over their limits, travel to [0, 1] by the
-largest possible travel):
+Two layouts (``observation=``), both with joint values normalised to [−1, 1] over their
+limits and travel to [0, 1] by the largest possible travel:
 
-- ``q``: the current configuration (dof); ``progress``: waypoints done / N.
-- For the next waypoint (slot 0) and each of ``lookahead`` later ones (slots 1…H):
-  ``present`` (1: the slot is within the task), ``candidates`` (K × dof, 0 where invalid),
-  ``valid`` (K), ``endpoint_collision`` (K).
-- Slot 0 also: ``travel`` (K) from the current configuration and ``path_collision`` (K)
-  along the path there. Slots h ≥ 1: ``travel`` (K × K) from every candidate of the
-  waypoint before.
+``"compact"`` (size O(K): arms with hundreds of branches)
+    ``q`` (dof), ``progress`` (waypoints done / N); for the next waypoint (slot 0) and
+    each of ``lookahead`` later ones (slots 1…H): ``present`` (1: within the task),
+    ``candidates`` (K × dof, 0 where invalid), ``valid`` (K), ``endpoint_collision`` (K),
+    ``travel_out`` (K: per branch, the least travel to any valid branch of the waypoint
+    after; 1 at the task's last waypoint); slot 0 also ``travel`` (K, from the current
+    configuration) and ``path_collision`` (K, along the path there); slots h ≥ 1 also
+    ``travel_in`` (K: per branch, the least travel from any valid branch of the waypoint
+    before). Travel of and to invalid branches is 1.
+``"ladder"`` (size O(K²): the v0/v1 ids)
+    As compact without ``travel_out`` and ``travel_in``; instead slots h ≥ 1 carry
+    ``travel`` (K × K) from every candidate of the waypoint before.
 
 Everything a task fixes is assembled once per task (:meth:`ObservationBuilder.prepare`);
 each step fills in the configuration and slot 0's travel and path collisions.
@@ -18,16 +23,44 @@ each step fills in the configuration and slot 0's travel and path collisions.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from envs.kinematics import Arm
 from envs.moves import TaskMoves
 
+#: The observation layouts (module docstring).
+OBSERVATIONS = ("compact", "ladder")
+
+
+@njit(cache=True)
+def _least_travel(here, valid_here, there, valid_there, weights, out_from, out_to):
+    """Per branch k of ``here`` (K, dof), the least weighted travel Σ_j w_j|Δq_j| to any
+    valid branch of ``there`` (``out_from``), and per branch of ``there`` the least from
+    any valid branch of ``here`` (``out_to``); +inf where nothing is valid."""
+    out_from[:] = np.inf
+    out_to[:] = np.inf
+    for a in range(here.shape[0]):
+        if not valid_here[a]:
+            continue
+        for b in range(there.shape[0]):
+            if not valid_there[b]:
+                continue
+            travel = 0.0
+            for j in range(here.shape[1]):
+                travel += abs(there[b, j] - here[a, j]) * weights[j]
+            out_from[a] = min(out_from[a], travel)
+            out_to[b] = min(out_to[b], travel)
+
 
 class ObservationBuilder:
-    """The layout and assembly of one env's observations (arm, lookahead, travel scale)."""
+    """The layout and assembly of one env's observations (arm, lookahead, travel scale,
+    ``kind``: one of ``OBSERVATIONS``)."""
 
-    def __init__(self, arm: Arm, lookahead: int, travel_scale: float) -> None:
-        self.arm, self.lookahead, self.travel_scale = arm, lookahead, travel_scale
+    def __init__(self, arm: Arm, lookahead: int, travel_scale: float,
+                 kind: str = "compact") -> None:
+        if kind not in OBSERVATIONS:
+            raise ValueError(f"observation must be one of {', '.join(OBSERVATIONS)}, got {kind!r}")
+        self.arm, self.lookahead, self.travel_scale, self.kind = arm, lookahead, travel_scale, kind
         lower, upper = arm.joint_limits[:, 0], arm.joint_limits[:, 1]
         self._centre, self._half_range = (upper + lower) / 2, (upper - lower) / 2
         #: name -> (start, stop) of each slice of the observation vector.
@@ -44,6 +77,11 @@ class ObservationBuilder:
         for h in range(self.lookahead + 1):
             sizes += [(f"slot{h}/present", 1), (f"slot{h}/candidates", k * dof),
                       (f"slot{h}/valid", k), (f"slot{h}/endpoint_collision", k)]
+            if self.kind == "compact":
+                sizes += [(f"slot{h}/travel_out", k)]
+                sizes += [("slot0/travel", k), ("slot0/path_collision", k)] if h == 0 else [
+                    (f"slot{h}/travel_in", k)]
+                continue
             sizes += [("slot0/travel", k), ("slot0/path_collision", k)] if h == 0 else [
                 (f"slot{h}/travel", k * k)]
         layout, start = {}, 0
@@ -70,6 +108,17 @@ class ObservationBuilder:
         width = common.shape[1]
         templates = np.zeros((n + 1, self.size))
         templates[:, slice(*self.layout["progress"])] = np.arange(n + 1)[:, None] / n
+        if self.kind == "compact":
+            self._prepare_compact(ladder, common, templates)
+        else:
+            self._prepare_ladder(ladder, common, templates, width)
+        # Values sit inside [−1, 1] by construction; the clip only absorbs the 1e-9 slack
+        # with which a branch may lie on a joint limit.
+        self._templates = np.clip(templates, -1.0, 1.0).astype(np.float32)
+
+    def _prepare_ladder(self, ladder, common, templates, width) -> None:
+        n, k = ladder.n_waypoints, self.arm.n_branches
+        valid = ladder.valid
         if self.lookahead and n > 1:
             # travel[i - 1]: (K, K) from every candidate of waypoint i − 1 to every one of i.
             both = valid[:-1, :, None] & valid[1:, None, :]
@@ -84,9 +133,25 @@ class ObservationBuilder:
             templates[:rows, start : start + width] = common[h:]
             if h:
                 templates[:rows, start + width : start + width + k * k] = travel[h - 1 :]
-        # Values sit inside [−1, 1] by construction; the clip only absorbs the 1e-9 slack
-        # with which a branch may lie on a joint limit.
-        self._templates = np.clip(templates, -1.0, 1.0).astype(np.float32)
+
+    def _prepare_compact(self, ladder, common, templates) -> None:
+        n, k = ladder.n_waypoints, self.arm.n_branches
+        # leaving[i] (K): from waypoint i onwards; arriving[i] (K): into waypoint i.
+        leaving, arriving = np.ones((n, k)), np.ones((n, k))
+        weights = ladder.pricer.cost.weights
+        out_from, out_to = np.empty(k), np.empty(k)
+        for i in range(n - 1):
+            _least_travel(ladder.candidates[i], ladder.valid[i], ladder.candidates[i + 1],
+                          ladder.valid[i + 1], weights, out_from, out_to)
+            leaving[i] = np.minimum(out_from / self.travel_scale, 1.0)
+            arriving[i + 1] = np.minimum(out_to / self.travel_scale, 1.0)
+        for h in range(min(self.lookahead, n - 1) + 1):
+            rows = n - h  # indices 0 … n − h − 1 see waypoint index + h inside the task
+            start = self.layout[f"slot{h}/present"][0]
+            templates[:rows, start : start + common.shape[1]] = common[h:]
+            templates[:rows, slice(*self.layout[f"slot{h}/travel_out"])] = leaving[h:]
+            if h:
+                templates[:rows, slice(*self.layout[f"slot{h}/travel_in"])] = arriving[h:]
 
     def observe(self, index: int, q: np.ndarray, valid: np.ndarray | None,
                 moves: dict | None) -> np.ndarray:

@@ -30,14 +30,18 @@ def _permuted(obs: np.ndarray, layout: dict, k: int, dof: int, order: np.ndarray
 
     for name, width in (("slot0/candidates", dof), ("slot0/valid", 1),
                         ("slot0/endpoint_collision", 1), ("slot0/travel", 1),
-                        ("slot0/path_collision", 1), ("slot1/travel", k)):
+                        ("slot0/path_collision", 1), ("slot1/travel", k),
+                        ("slot0/travel_out", 1)):
+        if name not in layout:
+            continue
         where, width = block(name, width)
         out[where] = obs[where].reshape(k, width)[order].ravel()
     return out
 
 
-def test_branch_scores_follow_the_branches_not_their_order():
-    env = gym.make("IKBranch/ToolTransfer-v0")
+@pytest.mark.parametrize("observation", ["ladder", "compact"])
+def test_branch_scores_follow_the_branches_not_their_order(observation):
+    env = gym.make("IKBranch/ToolTransfer-v0", observation=observation)
     obs, _ = env.reset(seed=3)
     base = env.unwrapped
     k, dof = base.arm.n_branches, base.arm.dof
@@ -54,10 +58,12 @@ def test_branch_scores_follow_the_branches_not_their_order():
     assert plain[0, :k].std() > 0  # the branches really get different scores
 
 
+@pytest.mark.parametrize("observation", ["ladder", "compact"])
 @pytest.mark.parametrize(("algorithm", "policy"),
                          [(PPO, BranchPolicy), (MaskablePPO, MaskableBranchPolicy)])
-def test_saved_branch_models_load_under_their_algorithm(algorithm, policy, tmp_path):
-    env = gym.make("IKBranch/RodMechanism-v1", n_waypoints=3)
+def test_saved_branch_models_load_under_their_algorithm(algorithm, policy, observation,
+                                                       tmp_path):
+    env = gym.make("IKBranch/RodMechanism-v1", n_waypoints=3, observation=observation)
     model = algorithm(policy, env, n_steps=32, batch_size=16, n_epochs=1, seed=0,
                       policy_kwargs=branch_policy_kwargs(env))
     model.learn(64)
@@ -71,7 +77,20 @@ def test_saved_branch_models_load_under_their_algorithm(algorithm, policy, tmp_p
                                    if algorithm is MaskablePPO else {}))
     action, _ = loaded.predict(obs, action_masks=env.unwrapped.action_masks())
     assert int(action) == int(expected)
-    assert run_episode(loaded, env, 5).steps >= 1
+    # A whole episode: the loaded policy acts as the trained model at every step.
+    episode = run_episode(loaded, env, 5)
+    obs, _ = env.reset(seed=5)
+    done, steps = False, 0
+    while not done:
+        masks = env.unwrapped.action_masks()
+        expected, _ = model.predict(obs, deterministic=True,
+                                    **({"action_masks": masks} if algorithm is MaskablePPO
+                                       else {}))
+        action, _ = loaded.predict(obs, action_masks=masks)
+        assert int(action) == int(expected)
+        obs, _, done, _, _ = env.step(int(action))
+        steps += 1
+    assert steps == episode.steps
 
 
 def test_branch_policy_needs_its_extractor_and_an_empty_actor():

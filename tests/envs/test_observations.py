@@ -1,0 +1,78 @@
+"""Observation layouts: the compact one grows O(K), its travel summaries are exact, and
+both stay inside the observation space."""
+
+from __future__ import annotations
+
+import itertools
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import envs
+from envs.observations import OBSERVATIONS
+from tests.envs.env_cases import IDS
+
+
+@pytest.mark.parametrize("kind", OBSERVATIONS)
+def test_layout_sizes(kind):
+    env = gym.make("IKBranch/ToolTransfer-v0", observation=kind, lookahead=2)
+    base = env.unwrapped
+    k, dof = base.arm.n_branches, base.arm.dof
+    per_slot = 1 + k * dof + 2 * k
+    if kind == "compact":
+        # travel_out in every slot; slot 0: travel, path_collision; slots 1, 2: travel_in.
+        expected = dof + 1 + 3 * (per_slot + k) + 2 * k + 2 * k
+    else:
+        expected = dof + 1 + 3 * per_slot + 2 * k + 2 * k * k
+    assert env.observation_space.shape == (expected,)
+    ends = sorted(base.observation_layout.values())
+    assert ends[0][0] == 0 and all(a[1] == b[0] for a, b in itertools.pairwise(ends))
+
+
+def test_compact_grows_linearly_in_the_branches():
+    small = gym.make("IKBranch/ToolTransfer-v0", observation="compact").observation_space
+    env = gym.make("IKBranch/ToolTransfer-v0", arm="ur5e", scene="random_clutter",
+                   task="random", observation="compact")
+    k = env.unwrapped.arm.n_branches
+    assert k == 256 and env.observation_space.shape[0] < 40 * k
+    assert small.shape[0] < 40 * 8
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_compact_travel_summaries_are_the_least_travel(env_id):
+    env = gym.make(env_id, observation="compact", lookahead=2, n_waypoints=4)
+    base = env.unwrapped
+    obs, _ = env.reset(seed=1)
+    assert env.observation_space.contains(obs)
+    layout, ladder, cost = base.observation_layout, base.ladder, base.cost
+    scale = base.pricer.travel_scale
+    for h in range(3):
+        i = base.index + h
+        rows = slice(*layout[f"slot{h}/travel_out"])
+        if i + 1 < ladder.n_waypoints:
+            travel = cost.travel(ladder.candidates[i][:, None], ladder.candidates[i + 1][None])
+            both = ladder.valid[i][:, None] & ladder.valid[i + 1][None]
+            least = np.where(both, travel, np.inf).min(axis=1)
+            expected = np.where(np.isfinite(least), np.minimum(least / scale, 1.0), 1.0)
+            np.testing.assert_allclose(obs[rows], expected.astype(np.float32), rtol=1e-6)
+        if h:
+            previous = cost.travel(ladder.candidates[i - 1][:, None], ladder.candidates[i][None])
+            both = ladder.valid[i - 1][:, None] & ladder.valid[i][None]
+            least = np.where(both, previous, np.inf).min(axis=0)
+            expected = np.where(np.isfinite(least), np.minimum(least / scale, 1.0), 1.0)
+            np.testing.assert_allclose(obs[slice(*layout[f"slot{h}/travel_in"])],
+                                       expected.astype(np.float32), rtol=1e-6)
+
+
+def test_registered_v1_ids_keep_the_ladder_layout():
+    # Their published models were trained on it (tests/train/test_results.py plays them).
+    for env_id, kwargs in envs.ENV_SPECS.items():
+        if env_id.endswith(("-v0", "-v1")):
+            assert kwargs["observation"] == "ladder"
+            assert "slot1/travel" in gym.make(env_id).unwrapped.observation_layout
+
+
+def test_unknown_layout_is_refused():
+    with pytest.raises(ValueError, match="observation"):
+        gym.make("IKBranch/ToolTransfer-v0", observation="dense")
