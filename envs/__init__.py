@@ -31,9 +31,40 @@ ENV_SPECS: dict[str, dict] = {
     "IKBranch/DualPPRPRR-v0": {"arm": "dual_ppr_prr", "scene": "empty", "task": "relative_motion"},
     "IKBranch/RodMechanism-v1": {"arm": "rod_mechanism", "scene": "empty", "task": "random"},
 }
-# The v0/v1 ids observe the ladder layout their published models were trained on.
+# The ids above observe the ladder layout their published models were trained on.
 for _kwargs in ENV_SPECS.values():
     _kwargs.setdefault("observation", "ladder")
+
+#: The current generation (the version history in ``IKBranchEnv``'s docstring): compact
+#: observations, and random clutter drawn anew at every episode.
+_CLUTTER = {"scene": "random_clutter", "scene_seed": None, "task": "random",
+            "observation": "compact"}
+_COMPACT = {"observation": "compact"}
+ENV_SPECS.update({
+    "IKBranch/Cartesian-v2": {"arm": "cartesian", **_CLUTTER},
+    "IKBranch/Cylindrical-v2": {"arm": "cylindrical", **_CLUTTER},
+    "IKBranch/Spherical-v2": {"arm": "spherical", **_CLUTTER},
+    "IKBranch/Anthropomorphic-v2": {"arm": "anthropomorphic", **_CLUTTER},
+    "IKBranch/Cylindrical4-v2": {"arm": "cylindrical4", **_CLUTTER},
+    "IKBranch/ToolTransfer-v1": {
+        "arm": "anthropomorphic", "scene": "milling_cell", "task": "tool_changes", **_COMPACT,
+    },
+    "IKBranch/DualRRPRPP-v1": {
+        "arm": "dual_rrp_rpp", "scene": "empty", "task": "relative_motion_free", **_COMPACT,
+    },
+    "IKBranch/DualRRRPPP-v1": {
+        "arm": "dual_rrr_ppp", "scene": "empty", "task": "relative_motion_free", **_COMPACT,
+    },
+    "IKBranch/DualPPRPRR-v1": {
+        "arm": "dual_ppr_prr", "scene": "empty", "task": "relative_motion_free", **_COMPACT,
+    },
+    "IKBranch/RodMechanism-v2": {
+        "arm": "rod_mechanism", "scene": "empty", "task": "random", **_COMPACT,
+    },
+    # Industrial arms (issue 12): their real limits, every turn branch.
+    "IKBranch/KukaKR6-v0": {"arm": "kuka_kr6_r700", **_CLUTTER},
+    "IKBranch/UR5e-v0": {"arm": "ur5e", **_CLUTTER},
+})
 ENV_IDS: tuple[str, ...] = tuple(ENV_SPECS)
 
 for _env_id, _kwargs in ENV_SPECS.items():

@@ -12,8 +12,10 @@ from gymnasium import spaces
 from envs.costs import TransitionCost
 from envs.kinematics import ARM_NAMES, make_arm
 from envs.models import SCENES, CollisionChecker, build_arm_model
+from envs.models.scenes import CLUTTER_SLOTS, ClutterSlots, draw_clutter
 from envs.moves import MovePricer, TaskMoves
 from envs.observations import ObservationBuilder
+from envs.seeds import TRAIN_SCENES
 from envs.tasks import TASKS, Task
 
 
@@ -106,7 +108,8 @@ class IKBranchEnv(gym.Env):
     joint_weights         None                    per-joint travel weights (None: all 1)
     joint_speeds          None                    per-joint speed limits (None: 1.5 rad/s, 0.5 m/s)
     collision_resolution  0.01                    path-check clearance and step (m)
-    scene_seed            0                       seed of the random-clutter scene
+    scene_seed            0                       random-clutter seed (None: new every reset)
+    scene_seeds           None                    [lo, hi) of those (None: the training range)
     arm_params            None                    dict of arm parameters (``make_arm``)
     observation           "compact"               "compact" (O(K)) or "ladder" (O(K²), v0/v1)
     render_mode           None                    None or "rgb_array"
@@ -115,6 +118,16 @@ class IKBranchEnv(gym.Env):
     ===================== ======================= ===========================================
 
     ## Version history
+    - The current generation: Cartesian, Cylindrical, Spherical, Anthropomorphic,
+      Cylindrical4 **-v2**, ToolTransfer **-v1**, DualRRPRPP, DualRRRPPP, DualPPRPRR **-v1**,
+      RodMechanism **-v2**, and the industrial arms KukaKR6 **-v0**, UR5e **-v0**: the
+      compact observation (O(K): least travel into and out of each branch instead of K × K
+      travel blocks); the random-clutter ids draw a new clutter at every reset
+      (``scene_seed=None``, seeds from ``scene_seeds``, training and held-out ranges in
+      ``envs/seeds.py``; obstacles are primitive boxes and capsules, moved without a
+      recompile); the dual-arm ids' tasks sweep along a collision-free straight path
+      (``relative_motion_free``), so every task has a collision-free solution. The older
+      ids stay registered, unchanged, for their published models.
     - Same ids, same behaviour (session 3): collision checks run through a compiled
       filter that decides exactly as before (``envs/models/compiled.py``), and the sample
       grid of a path is summed in joint order for every backend; the published results
@@ -150,7 +163,8 @@ class IKBranchEnv(gym.Env):
         joint_weights: list[float] | None = None,
         joint_speeds: list[float] | None = None,
         collision_resolution: float = 0.01,
-        scene_seed: int = 0,
+        scene_seed: int | None = 0,
+        scene_seeds: list[int] | None = None,
         arm_params: dict[str, Any] | None = None,
         observation: str = "compact",
         render_mode: str | None = None,
@@ -183,7 +197,15 @@ class IKBranchEnv(gym.Env):
                 f"got n_waypoints={n_waypoints!r}"
             )
         lookahead = _integer(lookahead, "lookahead", 0)
-        scene_seed = _integer(scene_seed, "scene_seed", 0)
+        if scene_seed is not None:
+            scene_seed = _integer(scene_seed, "scene_seed", 0)
+        elif scene != "random_clutter":
+            raise ValueError(f"scene_seed=None draws random clutter; scene {scene!r} has none")
+        seeds = TRAIN_SCENES if scene_seeds is None else tuple(scene_seeds)
+        if len(seeds) != 2 or not 0 <= _integer(seeds[0], "scene_seeds[0]", 0) < _integer(
+                seeds[1], "scene_seeds[1]", 1):
+            raise ValueError(f"scene_seeds must be [lo, hi) with 0 <= lo < hi, got {scene_seeds!r}")
+        self.scene_seeds = (int(seeds[0]), int(seeds[1]))
         for name, value in (("collision_penalty", collision_penalty),
                             ("invalid_penalty", invalid_penalty)):
             if not np.isfinite(value) or value < 0:
@@ -205,6 +227,11 @@ class IKBranchEnv(gym.Env):
         self.scene = scene
         scene_kwargs = {"seed": scene_seed} if scene == "random_clutter" else {}
         self.model = build_arm_model(self.arm, scene, **scene_kwargs)
+        #: The per-episode clutter's obstacle slots (``scene_seed=None``), else None.
+        self._clutter = ClutterSlots(self.model, CLUTTER_SLOTS) if (
+            scene == "random_clutter" and scene_seed is None) else None
+        #: The seed of the clutter standing now (None: the scene is fixed).
+        self.scene_seed: int | None = None
         checker = CollisionChecker(self.model, dof=self.arm.dof, resolution=collision_resolution)
         #: Prices every move (shared with planners and baselines; owns the caches).
         self.pricer = MovePricer(
@@ -276,11 +303,35 @@ class IKBranchEnv(gym.Env):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
         pricer = self.pricer
+        if self._clutter is not None:
+            self._lay_scene(int(self.np_random.integers(*self.scene_seeds)))
         task = self._generator(
             self.arm, self.np_random, self.n_waypoints, pricer.is_free, pricer.is_path_free
         )
         self._start(task, pricer.task(task))
-        return self._observation(), {"waypoint": 0}
+        info = {"waypoint": 0}
+        if self._clutter is not None:
+            info["scene_seed"] = self.scene_seed
+        return self._observation(), info
+
+    def _lay_scene(self, seed: int) -> None:
+        """Stand the clutter of scene ``seed`` in the model (the env's and the checker's),
+        without the obstacles that would touch the arm at home, as a fixed scene drops
+        them; every cached verdict belonged to the scene before."""
+        if seed == self.scene_seed:
+            return
+        clutter, checker = self._clutter, self.checker
+        obstacles = draw_clutter(self.arm, seed, clutter.base, CLUTTER_SLOTS)
+        clutter.lay(obstacles, self.model, checker.model)
+        checker.refresh_static(clutter.geoms)
+        if checker.collides(self.arm.home):
+            touching = {name for c in checker.contacts(self.arm.home)
+                        for name in (c.body1, c.body2)}
+            obstacles = [o for o in obstacles if f"clutter{o.slot}" not in touching]
+            clutter.lay(obstacles, self.model, checker.model)
+            checker.refresh_static(clutter.geoms)
+        self.pricer.clear_caches()
+        self.scene_seed = seed
 
     def _start(self, task: Task, ladder: TaskMoves) -> None:
         self.task, self.ladder = task, ladder
@@ -390,10 +441,13 @@ class IKBranchEnv(gym.Env):
             "q": self.q,
             "index": self.index,
             "flags": (self.episode_collided, self.episode_invalid),
+            "scene_seed": self.scene_seed,
         }
 
     def __setstate__(self, state: dict) -> None:
         self.__init__(**state["kwargs"])
+        if state.get("scene_seed") is not None:
+            self._lay_scene(state["scene_seed"])
         if state["rng"] is not None:
             self._np_random = np.random.Generator(np.random.PCG64())
             self._np_random.bit_generator.state = state["rng"]

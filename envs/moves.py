@@ -95,6 +95,11 @@ class MovePricer:
         self.configurations = _Cache(CONFIGURATION_CACHE_SIZE)
         self.paths = _Cache(PATH_CACHE_SIZE)
 
+    def clear_caches(self) -> None:
+        """Forget every cached verdict (the scene changed: ``scene_seed=None``)."""
+        for cache in (self.poses, self.configurations, self.paths):
+            cache.entries.clear()
+
     # ------------------------------------------------------------------ candidates
     def solve(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``candidates`` (N, K, dof), ``valid`` (N, K), ``endpoint_collision`` (N, K) of

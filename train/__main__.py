@@ -3,7 +3,7 @@
     python -m train --algo maskable_ppo --env IKBranch/ToolTransfer-v0 \\
         --timesteps 150000 --seed 0 --n-envs 2 --run-dir runs/tool_transfer
 
-Hyper-parameters come from ``configs/<algo>.yml`` (or ``--config``), keyed by env id;
+Hyper-parameters come from ``configs/hyperparams.yml`` (or ``--config``), keyed by env id;
 ``--timesteps``, ``--n-envs``, ``--env-kwargs`` and ``--hyperparams`` override them.
 """
 
@@ -14,7 +14,8 @@ import json
 import sys
 from pathlib import Path
 
-from train.training import ALGORITHMS, RunConfig, train
+from train.hyperparams import ALGORITHMS
+from train.training import RunConfig, train
 
 
 def _json_object(text: str) -> dict:
@@ -32,7 +33,7 @@ def parser() -> argparse.ArgumentParser:
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--algo", required=True, choices=sorted(ALGORITHMS))
     p.add_argument("--env", required=True, help="a registered id, e.g. IKBranch/ToolTransfer-v0")
-    p.add_argument("--config", help="YAML file keyed by env id (default configs/<algo>.yml)")
+    p.add_argument("--config", help="YAML file keyed by env id (default configs/hyperparams.yml)")
     p.add_argument("--env-kwargs", type=_json_object, default={}, help="JSON object")
     p.add_argument("--hyperparams", type=_json_object, default={},
                    help="JSON object of algorithm arguments overriding the config")

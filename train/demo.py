@@ -4,7 +4,7 @@ analytic ones on the milling cell.
     python -m train.demo [--run-dir runs/demo] [--timesteps N] [--episodes 50]
 
 1. Reproduces Klyuiko's (1986) worked example (``python -m envs.worked_example``).
-2. Trains MaskablePPO on ``IKBranch/ToolTransfer-v0`` (configs/maskable_ppo.yml; skipped
+2. Trains MaskablePPO on ``IKBranch/ToolTransfer-v0`` (configs/hyperparams.yml; skipped
    when the run directory already holds a finished ``model.zip``).
 3. Evaluates it beside ``paper_rule``, ``receding_dp``, ``dp_oracle`` and ``random`` on
    held-out task seeds and prints the table.

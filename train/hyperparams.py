@@ -1,47 +1,69 @@
-"""Hyper-parameters: YAML files in ``configs/`` keyed by env id, as in rl-baselines3-zoo.
+"""Hyper-parameters: ``configs/hyperparams.yml`` keyed by env id, as in rl-baselines3-zoo.
 
-Unlike the zoo there is no ``default`` entry: asking for an id a file does not list is an
-error, so a typo never trains with silently wrong settings.
+One block per env id serves both algorithms; a key named after an algorithm holds that
+algorithm's overrides. Unlike the zoo there is no ``default`` entry: asking for an id the
+file does not list is an error, so a typo never trains with silently wrong settings. The
+key ``_anchors`` only carries YAML anchors that entries merge in by name.
 """
 
 from __future__ import annotations
 
+import importlib
 from pathlib import Path
 from typing import Any
 
 import yaml
 
 CONFIG_DIR = Path(__file__).resolve().parent.parent / "configs"
-ALGOS = ("ppo", "maskable_ppo")
+CONFIG = CONFIG_DIR / "hyperparams.yml"
+#: The algorithms: name -> "module:class" (imported only when a run needs it).
+ALGORITHMS = {"ppo": "stable_baselines3:PPO", "maskable_ppo": "sb3_contrib:MaskablePPO"}
 #: Keys of an entry that are not constructor arguments of the algorithm.
 RUN_KEYS = ("n_timesteps", "n_envs", "policy", "eval_freq", "n_eval_episodes",
             "checkpoint_freq", "env_kwargs", "normalize_reward")
+ANCHORS = "_anchors"
 
 
-def config_path(algo: str) -> Path:
-    if algo not in ALGOS:
-        raise ValueError(f"unknown algorithm {algo!r}; choose one of {', '.join(ALGOS)}")
-    return CONFIG_DIR / f"{algo}.yml"
+def check_algorithm(algo: str) -> str:
+    if algo not in ALGORITHMS:
+        raise ValueError(f"unknown algorithm {algo!r}; choose one of {', '.join(ALGORITHMS)}")
+    return algo
 
 
-def load_config(path: str | Path) -> dict[str, dict[str, Any]]:
-    """The whole file: env id -> entry. ``ValueError`` for a key that is no registered id."""
+def algorithm_class(algo: str) -> type:
+    """The SB3 class of ``algo``."""
+    module, _, name = ALGORITHMS[check_algorithm(algo)].partition(":")
+    return getattr(importlib.import_module(module), name)
+
+
+def load_config(path: str | Path = CONFIG) -> dict[str, dict[str, Any]]:
+    """The whole file: env id -> entry. ``ValueError`` for a key that is no registered id,
+    or an override block for an unknown algorithm."""
     import envs
 
     with open(path) as handle:
         config = yaml.safe_load(handle) or {}
     if not isinstance(config, dict):
         raise ValueError(f"{path}: expected a mapping of env ids to hyper-parameters")
+    config.pop(ANCHORS, None)
     unknown = sorted(set(config) - set(envs.ENV_IDS))
     if unknown:
         raise ValueError(f"{path}: keys are not registered env ids: {', '.join(unknown)}")
+    for entry in config.values():
+        for key, value in entry.items():
+            if isinstance(value, dict) and key not in ("policy_kwargs", "env_kwargs"):
+                check_algorithm(key)  # a nested block is an algorithm's overrides
     return config
 
 
 def hyperparams_for(env_id: str, algo: str, path: str | Path | None = None) -> dict[str, Any]:
-    """The entry for ``env_id`` in ``path`` (default ``configs/<algo>.yml``), copied."""
-    path = config_path(algo) if path is None else Path(path)
+    """The entry for ``env_id`` in ``path`` (default ``configs/hyperparams.yml``) with
+    ``algo``'s overrides applied, copied."""
+    check_algorithm(algo)
+    path = CONFIG if path is None else Path(path)
     config = load_config(path)
     if env_id not in config:
         raise ValueError(f"{path} has no entry for {env_id!r} (no silent defaults)")
-    return dict(config[env_id])
+    entry = {key: value for key, value in config[env_id].items() if key not in ALGORITHMS}
+    entry.update(config[env_id].get(algo, {}))
+    return entry

@@ -27,12 +27,11 @@ from typing import Any
 import gymnasium as gym
 import torch
 import yaml
-from sb3_contrib import MaskablePPO
-from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import CallbackList
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
+from envs.seeds import VALIDATION_OFFSET, held_out
 from train.callbacks import (
     LATEST,
     REWARD_STATS,
@@ -40,11 +39,8 @@ from train.callbacks import (
     HeldOutEvalCallback,
     atomic_save,
 )
-from train.hyperparams import RUN_KEYS, hyperparams_for
+from train.hyperparams import RUN_KEYS, algorithm_class, check_algorithm, hyperparams_for
 
-ALGORITHMS = {"ppo": PPO, "maskable_ppo": MaskablePPO}
-#: Held-out evaluation tasks are drawn from seeds far from the training envs' (seed + i).
-EVAL_SEED_OFFSET = 1_000_000
 VERSIONED = ("ikbranch-gym", "gymnasium", "mujoco", "numpy", "torch", "stable-baselines3",
              "sb3-contrib")
 
@@ -73,6 +69,9 @@ class RunConfig:
     #: The learner's torch threads. One is fastest here: the policy is a small MLP and, on a
     #: 2-core machine, a second thread only fights the env processes (10x slower measured).
     torch_threads: int = 1
+    #: "subproc": the n_envs in worker processes (n_envs > 1), "dummy": all in this one
+    #: (a sweep runs one trial per CPU).
+    vec_env: str = "subproc"
 
 
 def branch_policy(algo: str, factory, overrides: dict[str, Any]) -> tuple[type, dict[str, Any]]:
@@ -115,8 +114,7 @@ def package_versions() -> dict[str, str]:
 
 def train(run: RunConfig, argv: list[str] | None = None):
     """Train (or resume) and return the model; everything lands in ``run.run_dir``."""
-    if run.algo not in ALGORITHMS:
-        raise ValueError(f"unknown algorithm {run.algo!r}; choose one of {', '.join(ALGORITHMS)}")
+    check_algorithm(run.algo)
     params = resolve(run)
     torch.set_num_threads(run.torch_threads)
     run_dir = Path(run.run_dir)
@@ -132,15 +130,15 @@ def train(run: RunConfig, argv: list[str] | None = None):
     env_kwargs = params["env_kwargs"]
     n_envs = params["n_envs"]
     factory = functools.partial(make_env, run.env_id, env_kwargs)
-    train_env = make_vec_env(
-        factory, n_envs=n_envs, seed=run.seed,
-        vec_env_cls=SubprocVecEnv if n_envs > 1 else DummyVecEnv,
-    )
-    # The same VecEnv class as training (SB3 warns otherwise), one env: masks and seeds.
-    eval_env = make_vec_env(
-        factory, n_envs=1, seed=run.seed + EVAL_SEED_OFFSET,
-        vec_env_cls=SubprocVecEnv if n_envs > 1 else DummyVecEnv,
-    )
+    if run.vec_env not in ("subproc", "dummy"):
+        raise ValueError(f"vec_env must be 'subproc' or 'dummy', got {run.vec_env!r}")
+    vec_env_cls = SubprocVecEnv if n_envs > 1 and run.vec_env == "subproc" else DummyVecEnv
+    train_env = make_vec_env(factory, n_envs=n_envs, seed=run.seed, vec_env_cls=vec_env_cls)
+    # The same VecEnv class as training (SB3 warns otherwise), one env: masks and seeds;
+    # scenes from the held-out range where the id draws one per episode (envs/seeds.py).
+    eval_factory = functools.partial(make_env, run.env_id, held_out(run.env_id, env_kwargs))
+    eval_env = make_vec_env(eval_factory, n_envs=1, seed=run.seed + VALIDATION_OFFSET,
+                            vec_env_cls=vec_env_cls)
     if params.get("normalize_reward", False):
         # Returns span −20 (a clean run) to −300 (an early crash): scaling the reward by
         # its running std keeps the value targets small and, measured on ToolTransfer-v0,
@@ -155,7 +153,7 @@ def train(run: RunConfig, argv: list[str] | None = None):
         # Evaluation sees the env's own rewards; SB3 wants the same wrapper type on both.
         eval_env = VecNormalize(eval_env, norm_obs=False, norm_reward=False, training=False)
     algo_kwargs = {key: value for key, value in params.items() if key not in RUN_KEYS}
-    algorithm = ALGORITHMS[run.algo]
+    algorithm = algorithm_class(run.algo)
     try:
         if run.resume:
             model = algorithm.load(latest, env=train_env, tensorboard_log=str(run_dir / "tb"))
@@ -173,7 +171,7 @@ def train(run: RunConfig, argv: list[str] | None = None):
         checkpoint = AtomicCheckpointCallback(per_env(params["checkpoint_freq"]), checkpoints)
         evaluation = HeldOutEvalCallback(
             eval_env,
-            eval_seed=run.seed + EVAL_SEED_OFFSET,
+            eval_seed=run.seed + VALIDATION_OFFSET,
             n_eval_episodes=params["n_eval_episodes"],
             eval_freq=per_env(params["eval_freq"]),
             best_model_save_path=str(run_dir / "best"),
@@ -204,8 +202,8 @@ def _write_records(run: RunConfig, params: dict, run_dir: Path, argv: list[str] 
         "algo": run.algo,
         "env_id": run.env_id,
         "seed": run.seed,
-        "eval_seed": run.seed + EVAL_SEED_OFFSET,
-        "config_file": str(run.config) if run.config else f"configs/{run.algo}.yml",
+        "eval_seed": run.seed + VALIDATION_OFFSET,
+        "config_file": str(run.config) if run.config else "configs/hyperparams.yml",
         "hyperparams": params,
     }
     (run_dir / "config.yml").write_text(yaml.safe_dump(config, sort_keys=False))

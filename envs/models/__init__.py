@@ -26,6 +26,7 @@ from .collision import (
     lever_arms,
 )
 from .model import arm_spec, build_arm_model, build_model
+from .scene_file import SceneFile, SceneFileError, load_scene_file
 from .scenes import (
     RECOMMENDED_BRANCHES,
     SCENES,
@@ -41,12 +42,15 @@ __all__ = [
     "CollisionChecker",
     "Contact",
     "PathResult",
+    "SceneFile",
+    "SceneFileError",
     "arm_spec",
     "body_lever_arms",
     "build_arm_model",
     "build_model",
     "candidate_pairs",
     "lever_arms",
+    "load_scene_file",
     "milling_cell_poses",
     "register_tree_builder",
 ]

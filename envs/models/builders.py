@@ -147,8 +147,13 @@ def _cylinder_to_primitive(geom: mujoco.MjsGeom, size: np.ndarray, fromto) -> No
         geom.size = np.array([radius, radius, half])
 
 
-def compile_spec(spec: mujoco.MjSpec) -> mujoco.MjModel:
+def compile_spec(spec: mujoco.MjSpec,
+                 primitive_boxes: Callable[[str], bool] | None = None) -> mujoco.MjModel:
     """Compile ``spec`` with every collision box turned into an 8-vertex convex mesh.
+
+    ``primitive_boxes(name)`` True keeps that box a box: a mesh cannot be resized at run
+    time, and the per-episode clutter's obstacle slots must be. Those boxes only ever meet
+    capsules and meshes (every arm box is a mesh), never the box–box collider below.
 
     MuJoCo's box–box collider misses pairs inside their contact margin in some
     orientations (google-deepmind/mujoco#2471): in an Anthropomorphic-v0 path, the
@@ -162,6 +167,7 @@ def compile_spec(spec: mujoco.MjSpec) -> mujoco.MjModel:
     boxes = [
         g for g in range(first.ngeom)
         if first.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX and first.geom_contype[g]
+        and not (primitive_boxes and primitive_boxes(first.geom(g).name))
     ]
     if not boxes:
         return first

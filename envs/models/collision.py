@@ -252,6 +252,18 @@ class CollisionChecker:
         if backend == "compiled":
             self._filter = CompiledFilter(self.model, self._data, self.dof, self._pairs)
 
+    def refresh_static(self, geoms: np.ndarray | None = None) -> None:
+        """Follow static geoms whose places or sizes were changed on ``self.model`` (the
+        per-episode clutter, ``envs.models.scenes.ClutterSlots``; ``geoms``: their ids,
+        default all): every backend's cached view of them is rebuilt. Candidate pairs and
+        lever arms do not depend on them."""
+        if self._filter is not None:
+            self._filter.refresh_static(geoms)
+            return
+        plane = self.model.geom_type[self._pairs] == mujoco.mjtGeom.mjGEOM_PLANE
+        self._radius_sum = np.where(plane, 0.0, self.model.geom_rbound[self._pairs]).sum(axis=1)
+        self._batch = None
+
     # ------------------------------------------------------------------ configurations
     def _full_qpos(self, q: np.ndarray) -> np.ndarray:
         full = np.broadcast_to(self.model.qpos0, (len(q), self.model.nq)).copy()

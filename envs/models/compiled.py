@@ -371,6 +371,37 @@ def compile_scene(model: mujoco.MjModel, dof: int, pairs: np.ndarray) -> Compile
     )
 
 
+def refresh_static(scene: CompiledScene, model: mujoco.MjModel,
+                   geoms: np.ndarray | None = None) -> None:
+    """Re-read static geoms of ``scene`` from ``model`` after their sizes or places
+    changed (the per-episode clutter): their world frames, containers and bounding radii,
+    and what the pairs keep of them. ``geoms``: the geom ids that changed (default every
+    static one). The tree, the candidate pairs and every moving geom are unchanged, so
+    nothing else is recomputed."""
+    static = np.flatnonzero(scene.slot_static)
+    if geoms is not None:
+        static = static[np.isin(scene.slot_geom[static], geoms)]
+    for s in static:
+        g = int(scene.slot_geom[s])
+        kind, size, offset, radius = container(model, g)
+        if kind != scene.slot_type[s]:
+            raise ValueError(f"geom {model.geom(g).name!r} changed its kind")
+        # A static geom's frame: its (static) body's, known since construction, times its own.
+        body = int(scene.slot_body[s])
+        frame = scene.body_xmat[body]
+        rot = frame @ _quat_to_mat(model.geom_quat[g])
+        scene.slot_size[s], scene.slot_radius[s] = size, radius
+        scene.slot_rot[s] = rot
+        scene.slot_pos[s] = scene.body_xpos[body] + frame @ model.geom_pos[g] + rot @ offset
+    pairs = np.flatnonzero(np.isin(scene.pair_b, static))
+    b = scene.pair_b[pairs]
+    scene.pair_fixed[pairs, :3] = scene.slot_pos[b]
+    scene.pair_fixed[pairs, 3:] = scene.slot_rot[b][:, :, 2]
+    partner = np.where(scene.slot_type[b] == PLANE, 0.0, scene.slot_radius[b])
+    scene.pair_reach[pairs] = scene.slot_radius[scene.pair_a[pairs]] + partner + scene.pair_margin[
+        pairs]
+
+
 # -------------------------------------------------------------------- distance kernels
 @njit(cache=True, inline="always")
 def _clamp(x, lo, hi):
@@ -1087,6 +1118,10 @@ class CompiledFilter:
         #: Samples bounded, MuJoCo checks, exact pair bounds: totals since construction
         #: (benchmarks and tests read them).
         self.counters = np.zeros(3, dtype=np.int64)
+
+    def refresh_static(self, geoms: np.ndarray | None = None) -> None:
+        """Follow changed static geoms of the model (see :func:`refresh_static`)."""
+        refresh_static(self.scene, self._model, geoms)
 
     def contacts(self, rows: np.ndarray) -> np.ndarray:
         """(M,) contact counts at configurations ``rows`` (M, dof): 0 where proven free."""

@@ -13,12 +13,17 @@
     Seeded boxes and cylinders standing on the floor near points of the arm's workspace
     (any arm); obstacles that would touch the arm at ``arm.home`` (within the collision
     checker's clearance) or overlap its fixed base are dropped.
+``file``
+    The obstacles of an MJCF file, ``scene_file=PATH`` (any arm; base pose, convex
+    decomposition of meshes: ``envs/models/scene_file.py``, ``docs/files.md``).
 
 Obstacles are static bodies (children of the world body): contacts among them and with the
 floor are never computed, only their contacts with the arm.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
@@ -28,6 +33,7 @@ from envs.kinematics.paper_example import RACK_SLOT_OFFSETS_Y, TOOL_ABC_MM, exam
 
 from .builders import STEEL, ArmTree, add_part, add_static_body, compile_spec
 from .collision import DEFAULT_RESOLUTION, CollisionChecker
+from .scene_file import file_scene
 
 MACHINE_RGBA = (0.30, 0.55, 0.45, 1.0)
 RACK_RGBA = (0.35, 0.40, 0.55, 1.0)
@@ -115,12 +121,63 @@ def milling_cell(spec: mujoco.MjSpec, arm: Arm, tree: ArmTree) -> mujoco.MjModel
     return compile_spec(spec)
 
 
+@dataclass(frozen=True)
+class Obstacle:
+    """One clutter obstacle standing on the floor: ``kind`` "box" (``half``: half-sizes
+    (x, y, z)) or "cylinder" (``half``: radius, radius, half-height), centred at ``pos``."""
+
+    slot: int
+    kind: str
+    half: tuple[float, float, float]
+    pos: tuple[float, float, float]
+
+
+def _static_arm_discs(model: mujoco.MjModel) -> list[tuple[np.ndarray, float]]:
+    """(xy, radius) of every collision geom of the arm's fixed base (its footprint)."""
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    return [
+        (data.geom_xpos[g, :2].copy(), float(model.geom_rbound[g]))
+        for g in range(model.ngeom)
+        if model.geom_bodyid[g] != 0 and model.body_weldid[model.geom_bodyid[g]] == 0
+        and model.geom_contype[g]
+        and not model.body(model.geom_bodyid[g]).name.startswith("clutter")
+    ]
+
+
+def draw_clutter(arm: Arm, seed: int, base: list[tuple[np.ndarray, float]],
+                 n_obstacles: int = 8) -> list[Obstacle]:
+    """The obstacles of clutter ``seed``: candidates next to the wrist centres of random
+    configurations (numpy ``default_rng(seed)``), those overlapping the fixed base
+    (``base`` discs) dropped. Whether one touches the arm at home is the caller's check."""
+    rng = np.random.default_rng(seed)
+    lower, upper = arm.joint_limits[:, 0], arm.joint_limits[:, 1]
+    centres = arm.fk(rng.uniform(lower, upper, size=(n_obstacles, arm.dof)))[:, :3, 3]
+    obstacles = []
+    for k, centre in enumerate(centres):
+        half = rng.uniform(0.05, 0.2, size=2)
+        # Reach up to somewhere around the sampled wrist centre (never below 0.1 m).
+        top = max(0.1, centre[2] + rng.uniform(-0.4, 0.0))
+        offset = rng.normal(scale=0.25, size=2)
+        xy = centre[:2] + offset
+        footprint = float(np.hypot(*half))
+        if any(np.hypot(*(xy - disc)) < footprint + radius for disc, radius in base):
+            continue
+        pos = (float(xy[0]), float(xy[1]), top / 2)
+        if rng.random() < 0.5:
+            obstacles.append(Obstacle(k, "box", (float(half[0]), float(half[1]), top / 2), pos))
+        else:
+            obstacles.append(Obstacle(k, "cylinder", (float(half[0]), float(half[0]), top / 2),
+                                      pos))
+    return obstacles
+
+
 def random_clutter(
     spec: mujoco.MjSpec,
     arm: Arm,
     tree: ArmTree,
     *,
-    seed: int | np.random.Generator = 0,
+    seed: int | None = 0,
     n_obstacles: int = 8,
     clearance: float = DEFAULT_RESOLUTION,
 ) -> mujoco.MjModel:
@@ -130,38 +187,31 @@ def random_clutter(
     (drawn from ``seed``'s generator); those that would touch the arm at ``arm.home``
     (closer than ``clearance``) or overlap the fixed base are dropped, so fewer than
     ``n_obstacles`` may remain.
+
+    ``seed=None``: a scene whose clutter changes at every episode without a recompile
+    (:class:`ClutterSlots`): ``n_obstacles`` obstacle slots, each a primitive box and a
+    cylinder (collided as the capsule inside it, as every cylinder here), all parked out
+    of reach until :meth:`ClutterSlots.lay` places a drawn clutter.
     """
-    rng = np.random.default_rng(seed)
-    lower, upper = arm.joint_limits[:, 0], arm.joint_limits[:, 1]
-    centres = arm.fk(rng.uniform(lower, upper, size=(n_obstacles, arm.dof)))[:, :3, 3]
+    if seed is None:
+        for k in range(n_obstacles):
+            body = add_static_body(spec, f"clutter{k}")
+            add_part(body, f"clutter{k}_box", "box", [0.1, 0.1, 0.1], CLUTTER_RGBA,
+                     pos=PARKED)
+            add_part(body, f"clutter{k}_cylinder", "cylinder", [0.1, 0.2], CLUTTER_RGBA,
+                     pos=PARKED)
+        return compile_spec(spec, primitive_boxes=lambda name: name.startswith("clutter"))
     base_model = spec.compile()
-    base_data = mujoco.MjData(base_model)
-    mujoco.mj_kinematics(base_model, base_data)
-    static_arm = [
-        g for g in range(base_model.ngeom)
-        if base_model.geom_bodyid[g] != 0 and base_model.body_weldid[base_model.geom_bodyid[g]] == 0
-        and base_model.geom_contype[g]
-    ]
+    obstacles = draw_clutter(arm, seed, _static_arm_discs(base_model), n_obstacles)
     bodies = []
-    for k, centre in enumerate(centres):
-        half = rng.uniform(0.05, 0.2, size=2)
-        # Reach up to somewhere around the sampled wrist centre (never below 0.1 m).
-        top = max(0.1, centre[2] + rng.uniform(-0.4, 0.0))
-        offset = rng.normal(scale=0.25, size=2)
-        xy = centre[:2] + offset
-        footprint = float(np.hypot(*half))
-        if any(
-            np.hypot(*(xy - base_data.geom_xpos[g, :2])) < footprint + base_model.geom_rbound[g]
-            for g in static_arm
-        ):
-            continue
-        body = add_static_body(spec, f"clutter{k}")
-        if rng.random() < 0.5:
-            add_part(body, f"clutter{k}", "box", [half[0], half[1], top / 2], CLUTTER_RGBA,
-                     pos=[xy[0], xy[1], top / 2])
+    for obstacle in obstacles:
+        body = add_static_body(spec, f"clutter{obstacle.slot}")
+        name = f"clutter{obstacle.slot}"
+        if obstacle.kind == "box":
+            add_part(body, name, "box", list(obstacle.half), CLUTTER_RGBA, pos=list(obstacle.pos))
         else:
-            add_part(body, f"clutter{k}", "cylinder", [half[0], top / 2], CLUTTER_RGBA,
-                     pos=[xy[0], xy[1], top / 2])
+            add_part(body, name, "cylinder", [obstacle.half[0], obstacle.half[2]], CLUTTER_RGBA,
+                     pos=list(obstacle.pos))
         bodies.append(body)
     model = compile_spec(spec)
     checker = CollisionChecker(model, dof=arm.dof, resolution=clearance)
@@ -172,4 +222,81 @@ def random_clutter(
     return compile_spec(spec) if touching else model
 
 
+#: Obstacle slots of a per-episode clutter (``random_clutter`` with ``seed=None``).
+CLUTTER_SLOTS = 8
+
+#: Where an unused obstacle slot waits: far below the floor, out of every arm's reach
+#: (static geoms never collide with each other or the floor).
+PARKED = (0.0, 0.0, -100.0)
+
+
+class ClutterSlots:
+    """The obstacle slots of a ``random_clutter`` scene built with ``seed=None``.
+
+    :meth:`lay` writes a drawn clutter into ``MjModel`` copies of it (the env's and its
+    collision checker's): positions and sizes of the slots' primitive geoms, with the
+    bounding data MuJoCo keeps per geom (``geom_rbound``, ``geom_aabb``) recomputed for the
+    new sizes; slots the clutter does not use are parked. ``geoms`` lists every slot geom
+    (what a collision checker must re-read afterwards).
+    """
+
+    PARTS = ("box", "box_vis", "cylinder", "cylinder_vis")
+
+    def __init__(self, model: mujoco.MjModel, n_obstacles: int) -> None:
+        self.n_obstacles = n_obstacles
+        #: (n_obstacles, 4) geom ids, columns in ``PARTS`` order.
+        self.ids = np.array([[model.geom(f"clutter{k}_{part}").id for part in self.PARTS]
+                             for k in range(n_obstacles)])
+        self.geoms = self.ids.ravel()
+        self._types = model.geom_type[self.geoms]
+        self.base = _static_arm_discs(model)
+
+    def lay(self, obstacles: list[Obstacle], *models: mujoco.MjModel) -> None:
+        half = np.tile((0.05, 0.05, 0.05), (len(self.geoms), 1))
+        pos = np.tile(PARKED, (len(self.geoms), 1))
+        for obstacle in obstacles:
+            row = 4 * obstacle.slot
+            if obstacle.kind == "box":
+                parts = (0, 1)
+            elif obstacle.half[2] >= obstacle.half[0]:
+                parts = (2, 3)
+            else:  # a disc: collided as the box around it (as add_part builds it)
+                parts = (0, 3)
+            for part in parts:
+                half[row + part], pos[row + part] = obstacle.half, obstacle.pos
+        size, rbound, aabb = _primitive_sizes(self._types, half)
+        for model in models:
+            model.geom_size[self.geoms] = size
+            model.geom_pos[self.geoms] = pos
+            model.geom_quat[self.geoms] = (1.0, 0.0, 0.0, 0.0)
+            model.geom_rbound[self.geoms] = rbound
+            model.geom_aabb[self.geoms] = np.concatenate([np.zeros_like(aabb), aabb], axis=1)
+
+
+def _primitive_sizes(types: np.ndarray, half: np.ndarray):
+    """MuJoCo ``geom_size``, ``geom_rbound`` and ``geom_aabb`` half-extents of primitive
+    geoms spanning ``half`` (x, y, z) (a cylinder's: radius, radius, half-height): a box by
+    its half-sizes, a cylinder by radius and half-height, a capsule (the collision twin of
+    a cylinder) by radius and the half-length of its straight part."""
+    kinds = mujoco.mjtGeom
+    radius, height = half[:, 0], half[:, 2]
+    size = np.zeros_like(half)
+    box = types == kinds.mjGEOM_BOX
+    cylinder = types == kinds.mjGEOM_CYLINDER
+    capsule = types == kinds.mjGEOM_CAPSULE
+    if not (box | cylinder | capsule).all():
+        raise ValueError("clutter slot geoms must be boxes, cylinders or capsules")
+    if np.any(capsule & (height < radius)):
+        raise ValueError("a clutter disc lower than it is wide has no capsule slot")
+    size[box] = half[box]
+    size[cylinder, 0], size[cylinder, 1] = radius[cylinder], height[cylinder]
+    size[capsule, 0], size[capsule, 1] = radius[capsule], height[capsule] - radius[capsule]
+    rbound = np.where(box, np.linalg.norm(half, axis=1),
+                      np.where(cylinder, np.hypot(radius, height), height))
+    aabb = np.where(box[:, None], half, np.stack([radius, radius, height], axis=1))
+    return size, rbound, aabb
+
+
 SCENES = {"empty": empty, "milling_cell": milling_cell, "random_clutter": random_clutter}
+#: ``scene="file"``: the obstacles of an MJCF file (``scene_file=PATH``; envs/models/scene_file.py).
+SCENES["file"] = file_scene

@@ -12,6 +12,7 @@ name               arms                         waypoints
 ``circle``         six-DOF pose arms            a horizontal circle, Frenet frame (†)
 ``line``           six-DOF pose arms            a straight line, constant orientation
 ``relative_motion`` two-arm systems             a relative-motion profile M34(t)
+``relative_motion_free`` two-arm systems        the same, its sweep a collision-free path
 ``tool_changes``   anthropomorphic, milling cell above slot, slot, above slot, spindle …
 ``paper_transfer`` anthropomorphic              the paper's positions 1 → 2
 ================== ============================ ==========================================
@@ -20,6 +21,9 @@ name               arms                         waypoints
 arm follows it; the cartesian, cylindrical and spherical arms' wrist bend range (±135°)
 cannot at the default 8 waypoints, and ``reset`` then fails with a ``RuntimeError`` after
 200 placements (3 waypoints work).
+
+Waypoint files (CSV/JSON, ``read_waypoints``/``write_waypoints``) are read by
+:mod:`envs.tasks.waypoint_file` (``docs/files.md``).
 """
 
 from __future__ import annotations
@@ -27,8 +31,9 @@ from __future__ import annotations
 from .base import Task, TaskGenerator
 from .paths import circle, helix, line
 from .random_reachable import random_reachable
-from .relative_motion import relative_motion
+from .relative_motion import relative_motion, relative_motion_free
 from .tool_transfer import paper_transfer, tool_changes
+from .waypoint_file import WaypointFile, WaypointFileError, read_waypoints, write_waypoints
 
 TASKS: dict[str, TaskGenerator] = {
     "random": random_reachable,
@@ -36,8 +41,17 @@ TASKS: dict[str, TaskGenerator] = {
     "circle": circle,
     "line": line,
     "relative_motion": relative_motion,
+    "relative_motion_free": relative_motion_free,
     "tool_changes": tool_changes,
     "paper_transfer": paper_transfer,
 }
 
-__all__ = ["TASKS", "Task", "TaskGenerator"]
+__all__ = [
+    "TASKS",
+    "Task",
+    "TaskGenerator",
+    "WaypointFile",
+    "WaypointFileError",
+    "read_waypoints",
+    "write_waypoints",
+]

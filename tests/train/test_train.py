@@ -12,7 +12,7 @@ import yaml
 from sb3_contrib import MaskablePPO
 
 import envs
-from train.hyperparams import ALGOS, CONFIG_DIR, hyperparams_for, load_config
+from train.hyperparams import ALGORITHMS, CONFIG, hyperparams_for, load_config
 from train.training import RunConfig, resolve
 
 TINY = '{"n_steps": 64, "batch_size": 32, "n_epochs": 2, "eval_freq": 400, ' \
@@ -20,10 +20,27 @@ TINY = '{"n_steps": 64, "batch_size": 32, "n_epochs": 2, "eval_freq": 400, ' \
 ENV = "IKBranch/ToolTransfer-v0"
 
 
-@pytest.mark.parametrize("algo", ALGOS)
-def test_config_keys_are_exactly_the_registered_ids(algo):
-    config = load_config(CONFIG_DIR / f"{algo}.yml")
-    assert set(config) == set(envs.ENV_IDS)
+def test_config_keys_are_exactly_the_registered_ids():
+    assert set(load_config(CONFIG)) == set(envs.ENV_IDS)
+
+
+@pytest.mark.parametrize("algo", ALGORITHMS)
+def test_every_entry_resolves_for_every_algorithm(algo):
+    for env_id in envs.ENV_IDS:
+        params = hyperparams_for(env_id, algo)
+        assert params["n_timesteps"] > 0 and params["policy"] in ("MlpPolicy", "BranchPolicy")
+        assert not set(params) & set(ALGORITHMS)  # overrides merged, not left nested
+
+
+def test_algorithm_overrides_apply_to_their_algorithm_only(tmp_path):
+    path = tmp_path / "config.yml"
+    path.write_text(f"{ENV}:\n  n_timesteps: 10\n  n_steps: 64\n"
+                    "  maskable_ppo:\n    n_steps: 128\n")
+    assert hyperparams_for(ENV, "ppo", path)["n_steps"] == 64
+    assert hyperparams_for(ENV, "maskable_ppo", path)["n_steps"] == 128
+    path.write_text(f"{ENV}:\n  n_timesteps: 10\n  dqn:\n    n_steps: 128\n")
+    with pytest.raises(ValueError, match="unknown algorithm"):
+        load_config(path)
 
 
 def test_unknown_ids_are_errors_not_defaults(tmp_path):

@@ -1,0 +1,120 @@
+"""Per-episode clutter (``scene_seed=None``): new obstacles every reset, no recompile, the
+same obstacles as the fixed scene of that seed, and collision checks that follow."""
+
+from __future__ import annotations
+
+import pickle
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+import pytest
+
+import envs  # noqa: F401
+from envs.models import CollisionChecker, build_model, candidate_pairs
+from envs.seeds import HELD_OUT_SCENES, TRAIN_SCENES
+
+ARMS = ("anthropomorphic", "cylindrical", "kuka_kr6_r700")
+
+
+def _env(arm: str, **kwargs):
+    return gym.make("IKBranch/Anthropomorphic-v2", arm=arm, n_waypoints=3, **kwargs).unwrapped
+
+
+@pytest.mark.parametrize("arm_name", ARMS)
+def test_each_scene_is_the_fixed_scene_of_its_seed(arm_name):
+    # Same obstacles as build_model(..., seed=s): the same verdicts everywhere (the boxes
+    # are primitives here and meshes there; the clearance test below checks both against
+    # the exact distance).
+    env = _env(arm_name)
+    arm = env.arm
+    rng = np.random.default_rng(0)
+    q = rng.uniform(arm.joint_limits[:, 0], arm.joint_limits[:, 1], size=(800, arm.dof))
+    for seed in (0, 5, 11):
+        env._lay_scene(seed)
+        fixed = CollisionChecker(build_model(arm_name, "random_clutter", seed=seed), dof=arm.dof,
+                                 backend="loop")
+        laid = CollisionChecker(env.model, dof=arm.dof, backend="loop")
+        np.testing.assert_array_equal(laid.collides(q), fixed.collides(q))
+        np.testing.assert_array_equal(env.checker.collides(q), fixed.collides(q))
+
+
+@pytest.mark.parametrize("arm_name", ARMS)
+def test_compiled_checks_follow_the_obstacles(arm_name):
+    env = _env(arm_name)
+    arm, checker = env.arm, env.checker
+    rng = np.random.default_rng(1)
+    lower, upper = arm.joint_limits[:, 0], arm.joint_limits[:, 1]
+    q0 = rng.uniform(lower, upper, size=(600, arm.dof))
+    q1 = np.clip(q0 + rng.uniform(-0.25, 0.25, size=q0.shape) * (upper - lower), lower, upper)
+    hits = []
+    for seed in (3, 4, 9):
+        env._lay_scene(seed)
+        loop = CollisionChecker(env.model, dof=arm.dof, backend="loop")
+        expected = loop.check_paths(q0, q1)
+        np.testing.assert_equal(checker.check_paths(q0, q1), expected)
+        np.testing.assert_array_equal(checker.paths_collide(q0, q1), expected[0])
+        np.testing.assert_array_equal(checker.n_contacts(q0), loop.n_contacts(q0))
+        hits.append(expected[0])
+    assert not np.array_equal(hits[0], hits[1])  # the scenes differ
+
+
+def test_clearance_verdict_is_the_exact_distance_with_primitive_obstacles():
+    env = _env("anthropomorphic")
+    arm = env.arm
+    rng = np.random.default_rng(2)
+    for seed in (1, 2):
+        env._lay_scene(seed)
+        model = env.checker.model  # margins set: the checker's own copy
+        data = mujoco.MjData(model)
+        pairs = candidate_pairs(model)
+        q = rng.uniform(arm.joint_limits[:, 0], arm.joint_limits[:, 1], size=(150, arm.dof))
+        for row, verdict in zip(q, env.checker.collides(q), strict=True):
+            data.qpos[: arm.dof] = row
+            mujoco.mj_kinematics(model, data)
+            nearest = min(mujoco.mj_geomDistance(model, data, a, b, 1.0, None) for a, b in pairs)
+            if abs(nearest - env.checker.resolution) > 1e-6:
+                assert verdict == (nearest < env.checker.resolution)
+
+
+def test_resets_draw_scenes_without_recompiling_and_deterministically():
+    env = gym.make("IKBranch/Anthropomorphic-v2")
+    base = env.unwrapped
+    model = base.model
+    seeds = [env.reset(seed=s)[1]["scene_seed"] for s in range(6)]
+    assert len(set(seeds)) == 6 and all(TRAIN_SCENES[0] <= s < TRAIN_SCENES[1] for s in seeds)
+    assert base.model is model
+    _, info = env.reset(seed=2)
+    layout = base.model.geom_pos.copy()
+    task = base.task
+    _, again = env.reset(seed=2)
+    assert again["scene_seed"] == info["scene_seed"] == seeds[2]
+    np.testing.assert_array_equal(base.model.geom_pos, layout)
+    np.testing.assert_array_equal(base.task.poses, task.poses)
+    copy = pickle.loads(pickle.dumps(base))  # the scene travels with the env
+    assert copy.scene_seed == base.scene_seed
+    np.testing.assert_array_equal(copy.model.geom_pos, base.model.geom_pos)
+
+
+def test_held_out_scenes_come_from_their_own_range():
+    assert TRAIN_SCENES[1] <= HELD_OUT_SCENES[0]  # disjoint
+    env = gym.make("IKBranch/Anthropomorphic-v2", scene_seeds=list(HELD_OUT_SCENES))
+    drawn = [env.reset(seed=s)[1]["scene_seed"] for s in range(20)]
+    assert all(HELD_OUT_SCENES[0] <= s < HELD_OUT_SCENES[1] for s in drawn)
+    with pytest.raises(ValueError, match="scene_seeds"):
+        gym.make("IKBranch/Anthropomorphic-v2", scene_seeds=[5, 5])
+    with pytest.raises(ValueError, match="scene_seed=None"):
+        gym.make("IKBranch/ToolTransfer-v1", scene_seed=None)
+
+
+def test_a_new_scene_forgets_the_old_verdicts():
+    env = _env("anthropomorphic")
+    arm, pricer = env.arm, env.pricer
+    rng = np.random.default_rng(4)
+    q0, q1 = rng.uniform(arm.joint_limits[:, 0], arm.joint_limits[:, 1], size=(2, 400, arm.dof))
+    env._lay_scene(7)
+    first = pricer.paths_collide(q0, q1)  # now cached
+    env._lay_scene(8)
+    second = pricer.paths_collide(q0, q1)
+    np.testing.assert_array_equal(second, env.checker.paths_collide(q0, q1))
+    assert not np.array_equal(first, second)
