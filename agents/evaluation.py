@@ -120,6 +120,7 @@ def summarise(episodes: list[Episode], oracle_return: float | None = None) -> di
         # inside its first predict call, so this is its planning cost amortised per step.
         "decision_ms": 1e3 * sum(e.decision_seconds for e in episodes) / steps,
         "returns": rewards.tolist(),
+        "successes": [bool(e.success) for e in episodes],
     }
 
 

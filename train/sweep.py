@@ -1,0 +1,213 @@
+"""``python -m train.sweep``: env × algorithm × seed training trials on Ray Tune.
+
+    python -m train.sweep --env IKBranch/Anthropomorphic-v2 --algo ppo --algo maskable_ppo \\
+        --seeds 0-4 [--root runs/sweep] [--address auto] [--timesteps N] [--episodes 200]
+
+Every trial runs the training code of ``python -m train`` into the same run directory
+layout, ``<root>/runs/<EnvName>/<algo>/seed<k>`` (config, command, versions, checkpoints,
+learning curve, ``model.zip``), then plays the final model on ``--episodes`` held-out
+tasks (task seeds ``envs.seeds.TEST_SEED`` …; for ids that draw a clutter per episode,
+scenes from the held-out range) beside the DP oracle, and writes ``evaluation.json``
+there. Per env id one more trial evaluates every analytic baseline on the same tasks into
+``<root>/baselines/<EnvName>.json``. ``python -m train.aggregate --root …`` turns all of it
+into interval estimates.
+
+Ray starts embedded on this machine's cores unless ``--address`` names an existing
+cluster (``auto``, ``ray://host:10001``; the root must then be storage every node sees).
+A failed trial is retried (``--max-failures``) and continues from its last checkpoint; a
+trial whose ``evaluation.json`` exists is skipped, so running the same command again
+resumes a sweep, across sessions too.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from train.hyperparams import ALGORITHMS
+
+ROOT = Path(__file__).resolve().parent.parent
+#: Held-out tasks per evaluation (issue 14: at least 200 per row).
+EPISODES = 200
+BASELINES_TRIAL = "baselines"
+
+
+def env_name(env_id: str) -> str:
+    return env_id.split("/")[-1]
+
+
+def run_dir(root: Path, env_id: str, algo: str, seed: int) -> Path:
+    return Path(root) / "runs" / env_name(env_id) / algo / f"seed{seed}"
+
+
+def baselines_path(root: Path, env_id: str) -> Path:
+    return Path(root) / "baselines" / f"{env_name(env_id)}.json"
+
+
+def _write_json(path: Path, record: dict) -> None:
+    """Atomically: a reader (or a resumed sweep) never sees half a file."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    partial = path.with_suffix(".json.partial")
+    partial.write_text(json.dumps(record, indent=1) + "\n")
+    os.replace(partial, path)
+
+
+def run_trial(spec: dict[str, Any]) -> dict[str, Any]:
+    """One trial, without Ray: train (or resume, or skip) and evaluate; returns the record."""
+    from agents import BASELINES
+    from agents.evaluation import evaluate
+    from envs.seeds import TEST_SEED, held_out
+    from train.callbacks import LATEST
+    from train.hyperparams import hyperparams_for
+    from train.training import RunConfig, train
+
+    root, env_id, algo = Path(spec["root"]), spec["env_id"], spec["algo"]
+    episodes, env_kwargs = spec["episodes"], held_out(env_id, spec.get("env_kwargs"))
+    if algo == BASELINES_TRIAL:
+        target = baselines_path(root, env_id)
+        if target.exists():
+            return json.loads(target.read_text())
+        start = time.perf_counter()
+        result = evaluate(env_id, list(BASELINES), episodes, TEST_SEED, env_kwargs=env_kwargs)
+        record = {"env": env_id, "kind": BASELINES_TRIAL, "episodes": episodes,
+                  "task_seed": TEST_SEED, "env_kwargs": env_kwargs,
+                  "wall_minutes": (time.perf_counter() - start) / 60,
+                  "policies": result["policies"]}
+        _write_json(target, record)
+        return record
+    seed = int(spec["seed"])
+    directory = run_dir(root, env_id, algo, seed)
+    done = directory / "evaluation.json"
+    if done.exists():
+        return json.loads(done.read_text())
+    start = time.perf_counter()
+    if not (directory / "model.zip").exists():
+        resume = (directory / "checkpoints" / LATEST).exists()
+        train(RunConfig(algo=algo, env_id=env_id, seed=seed, run_dir=directory,
+                        timesteps=spec.get("timesteps"), resume=resume, progress_bar=False,
+                        hyperparams=dict(spec.get("hyperparams") or {}), vec_env="dummy"),
+              argv=["--algo", algo, "--env", env_id, "--seed", str(seed), "--run-dir",
+                    str(directory)])
+    trained = time.perf_counter()
+    model = str(directory / "model.zip")
+    result = evaluate(env_id, [model], episodes, TEST_SEED, env_kwargs=env_kwargs)
+    params = hyperparams_for(env_id, algo)
+    record = {
+        "env": env_id, "kind": "trial", "algo": algo, "seed": seed,
+        "timesteps": spec.get("timesteps") or params["n_timesteps"],
+        "train_minutes": (trained - start) / 60,
+        "eval_minutes": (time.perf_counter() - trained) / 60,
+        "episodes": episodes, "task_seed": TEST_SEED, "env_kwargs": env_kwargs,
+        "policy": result["policies"][model.removesuffix(".zip")],
+        "oracle": result["policies"]["dp_oracle"],
+    }
+    _write_json(done, record)
+    return record
+
+
+def _trainable(config: dict[str, Any]) -> None:
+    from ray import tune
+
+    record = run_trial(config["trial"])
+    metrics = record.get("policy") or record["policies"]["dp_oracle"]
+    tune.report({"success_rate": metrics["success_rate"],
+                 "mean_return": metrics["mean_return"]})
+
+
+def trials(env_ids: list[str], algos: list[str], seeds: list[int], root: Path,
+           episodes: int, timesteps: int | None = None,
+           hyperparams: dict | None = None) -> list[dict[str, Any]]:
+    """The sweep's trials: every env × algorithm × seed, and one baselines trial per env.
+    ``timesteps`` and ``hyperparams`` override the config for every trial."""
+    specs = []
+    for env_id in env_ids:
+        common = {"root": str(root), "env_id": env_id, "episodes": episodes}
+        specs.append({**common, "algo": BASELINES_TRIAL})
+        specs += [{**common, "algo": algo, "seed": seed, "timesteps": timesteps,
+                   "hyperparams": hyperparams or {}}
+                  for algo in algos for seed in seeds]
+    return specs
+
+
+def _trial_name(trial) -> str:
+    spec = trial.config["trial"]
+    seed = f"-seed{spec['seed']}" if "seed" in spec else ""
+    return f"{env_name(spec['env_id'])}-{spec['algo']}{seed}-{trial.trial_id}"
+
+
+def sweep(specs: list[dict[str, Any]], *, address: str | None = None,
+          cpus_per_trial: float = 1.0, max_failures: int = 2, verbose: int = 1):
+    """Run ``specs`` as Ray Tune trials; returns Tune's ``ResultGrid``."""
+    os.environ.setdefault("RAY_CHDIR_TO_TRIAL_DIR", "0")  # run directories are absolute
+    import ray
+    from ray import tune
+
+    if not ray.is_initialized():
+        if address:
+            ray.init(address=address)
+        else:
+            ray.init(include_dashboard=False, configure_logging=False)
+    storage = Path(specs[0]["root"]).resolve() / "tune"
+    tuner = tune.Tuner(
+        tune.with_resources(_trainable, {"cpu": cpus_per_trial}),
+        param_space={"trial": tune.grid_search(specs)},
+        tune_config=tune.TuneConfig(trial_dirname_creator=_trial_name),
+        run_config=tune.RunConfig(
+            name=time.strftime("sweep-%Y%m%d-%H%M%S"), storage_path=str(storage),
+            failure_config=tune.FailureConfig(max_failures=max_failures), verbose=verbose,
+        ),
+    )
+    return tuner.fit()
+
+
+def _seeds(text: str) -> list[int]:
+    seeds: list[int] = []
+    for part in text.split(","):
+        low, _, high = part.partition("-")
+        seeds += list(range(int(low), int(high or low) + 1))
+    return seeds
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m train.sweep", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--env", action="append", required=True, dest="envs",
+                   help="a registered id (repeat for several)")
+    p.add_argument("--algo", action="append", choices=tuple(ALGORITHMS), dest="algos",
+                   help="default: every algorithm")
+    p.add_argument("--seeds", default="0-4", type=_seeds, help="e.g. 0-4 or 0,2,5 (0-4)")
+    p.add_argument("--root", type=Path, default=ROOT / "runs" / "sweep")
+    p.add_argument("--address", help="an existing Ray cluster (default: embedded Ray)")
+    p.add_argument("--timesteps", type=int, help="override every trial's budget")
+    p.add_argument("--hyperparams", type=json.loads, default={},
+                   help="JSON object overriding every trial's algorithm arguments")
+    p.add_argument("--episodes", type=int, default=EPISODES, help=f"held-out tasks ({EPISODES})")
+    p.add_argument("--cpus-per-trial", type=float, default=1.0)
+    p.add_argument("--max-failures", type=int, default=2, help="retries of a failed trial")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parser().parse_args(sys.argv[1:] if argv is None else argv)
+    import envs
+
+    unknown = [env_id for env_id in args.envs if env_id not in envs.ENV_IDS]
+    if unknown:
+        parser().error(f"unknown env ids: {', '.join(unknown)}")
+    specs = trials(args.envs, args.algos or list(ALGORITHMS), args.seeds, args.root.resolve(),
+                   args.episodes, args.timesteps, args.hyperparams)
+    results = sweep(specs, address=args.address, cpus_per_trial=args.cpus_per_trial,
+                    max_failures=args.max_failures)
+    failed = [r for r in results if r.error]
+    print(f"{len(results) - len(failed)} of {len(results)} trials done; run directories "
+          f"under {args.root / 'runs'}")
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
