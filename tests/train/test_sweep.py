@@ -1,0 +1,93 @@
+"""A tiny sweep on embedded Ray: two trials and the baselines, then the same command again
+resumes (skips) them; the aggregation on synthetic scores with known IQM and intervals."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from train import aggregate, sweep
+
+TINY = ['--hyperparams', '{"n_steps": 32, "batch_size": 32, "n_epochs": 1, '
+        '"eval_freq": 64, "n_eval_episodes": 2, "checkpoint_freq": 64}']
+
+
+def test_tiny_sweep_writes_run_directories_and_resumes(tmp_path):
+    import ray
+
+    argv = ["--env", "IKBranch/ToolTransfer-v1", "--algo", "maskable_ppo", "--seeds", "0-1",
+            "--timesteps", "128", "--episodes", "3", "--root", str(tmp_path), *TINY]
+    try:
+        assert sweep.main(argv) == 0
+        models = {seed: sweep.run_dir(tmp_path, "IKBranch/ToolTransfer-v1", "maskable_ppo",
+                                      seed) for seed in (0, 1)}
+        for seed, directory in models.items():
+            for name in ("config.yml", "command.txt", "versions.yml", "model.zip",
+                         "evaluations.npz", "evaluation.json"):
+                assert (directory / name).exists(), name
+            record = json.loads((directory / "evaluation.json").read_text())
+            assert record["seed"] == seed and len(record["policy"]["returns"]) == 3
+            assert record["timesteps"] == 128
+        baselines = json.loads(sweep.baselines_path(tmp_path, "IKBranch/ToolTransfer-v1")
+                               .read_text())
+        assert {"dp_oracle", "paper_rule", "random"} <= set(baselines["policies"])
+        stamps = {seed: (d / "model.zip").stat().st_mtime_ns for seed, d in models.items()}
+        assert sweep.main(argv) == 0  # resumed: finished trials are skipped, not retrained
+        assert stamps == {seed: (d / "model.zip").stat().st_mtime_ns
+                          for seed, d in models.items()}
+        record = aggregate.aggregate(tmp_path)["IKBranch/ToolTransfer-v1"]
+        assert record["policies"]["maskable_ppo"]["runs"] == 2
+    finally:
+        ray.shutdown()
+
+
+def _synthetic_root(tmp_path, scores: np.ndarray, rival: np.ndarray):
+    """A sweep root whose 2 seeds of ``ppo`` score ``scores`` (2, T) per task: oracle
+    return 0, random −10, so R = 10·(score − 1); ``paper_rule`` scores ``rival``."""
+    tasks = scores.shape[1]
+    env = "IKBranch/ToolTransfer-v1"
+
+    def policy(returns, successes=None):
+        return {"returns": list(returns), "successes": list(successes or [True] * tasks),
+                "decision_ms": 1.0}
+
+    oracle = np.zeros(tasks)
+    baselines = {"dp_oracle": policy(oracle), "random": policy(np.full(tasks, -10.0)),
+                 "paper_rule": policy(10 * (rival - 1)), "receding_dp": policy(oracle)}
+    record = {"env": env, "task_seed": 0, "env_kwargs": {}, "policies": baselines}
+    path = sweep.baselines_path(tmp_path, env)
+    path.parent.mkdir(parents=True)
+    path.write_text(json.dumps(record))
+    for seed, row in enumerate(scores):
+        successes = [bool(s > 0.5) for s in row]
+        trial = {"env": env, "algo": "ppo", "seed": seed, "oracle": policy(oracle),
+                 "policy": policy(10 * (row - 1), successes)}
+        directory = sweep.run_dir(tmp_path, env, "ppo", seed)
+        directory.mkdir(parents=True)
+        (directory / "evaluation.json").write_text(json.dumps(trial))
+    return env
+
+
+def test_aggregation_recovers_known_iqm_intervals_and_improvement(tmp_path):
+    rng = np.random.default_rng(0)
+    scores = rng.uniform(0.5, 1.0, size=(2, 200))
+    env = _synthetic_root(tmp_path, scores, rival=np.full(200, 0.2))
+    record = aggregate.aggregate(tmp_path)[env]
+    learned = record["policies"]["ppo"]
+    point, low, high = learned["score"]
+    # The IQM is the 25 %-trimmed mean over all runs × tasks, computed independently.
+    assert point == pytest.approx(stats.trim_mean(scores.ravel(), 0.25), abs=1e-12)
+    assert low < point < high and high - low < 0.1
+    assert record["policies"]["dp_oracle"]["score"][0] == pytest.approx(1.0)
+    assert record["policies"]["random"]["score"][0] == pytest.approx(0.0)
+    # Every learned score beats paper_rule's 0.2 on every task: improvement certain.
+    assert learned["improvement"]["paper_rule"] == pytest.approx((1.0, 1.0, 1.0))
+    # ... and never beats receding_dp's 1.0.
+    assert learned["improvement"]["receding_dp"][0] == pytest.approx(0.0)
+    success = (scores > 0.5).mean()
+    assert learned["success"][1] <= success <= learned["success"][2]
+    per_run = scores.mean(axis=1)
+    assert learned["representative_seed"] == int(np.argmin(np.abs(per_run - point)))

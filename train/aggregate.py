@@ -1,0 +1,186 @@
+"""Interval estimates over a sweep: ``python -m train.aggregate [--root runs/sweep]``.
+
+Per env id and policy, from every trial's ``evaluation.json`` and the id's baselines
+(``train.sweep``), following Agarwal et al. (NeurIPS 2021) with rliable:
+
+- **Normalised score** per held-out task: (R − R_random) / (R_oracle − R_random), so the
+  DP oracle scores 1 and the uniform random policy 0 on every task (both play the same
+  tasks and scenes as everyone). Tasks on which random already attains the optimum carry
+  no information and are left out (counted in the record); an id where that is every task
+  (one branch) gets no score. Reported: the **IQM** over runs × tasks with its 95 %
+  stratified-bootstrap CI, and the **gap** to the oracle, (R_oracle − R)/|R_oracle| per
+  task, as an IQM with CI.
+- **Success rate** with a stratified-bootstrap 95 % CI.
+- **Probability of improvement** of each learned policy over ``paper_rule`` and over
+  ``receding_dp`` on the normalised scores, with its CI.
+- **Learning curves**: held-out return during training, mean over each round's tasks,
+  the IQM across seeds with a bootstrap band.
+
+Every interval resamples the tasks as well as the runs within them (rliable's
+``task_bootstrap``): the held-out tasks are a sample of the task distribution. Analytic
+baselines are deterministic (the random one is seeded), so they are one run and their
+intervals come from the tasks alone. ``decision_ms`` is the mean wall time per decision.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from train.sweep import ROOT, env_name
+
+#: Bootstrap resamples for every interval.
+REPS = 2000
+ORACLE, RANDOM = "dp_oracle", "random"
+#: What learned policies are compared with (probability of improvement).
+RIVALS = ("paper_rule", "receding_dp")
+
+
+def _estimate(scores: dict[str, Any], func, seed: int = 0) -> dict[str, tuple[float, float, float]]:
+    """{name: (point, low, high)} of ``func`` with rliable's stratified bootstrap, tasks
+    resampled too: the held-out tasks are a sample of the task distribution, not a fixed
+    benchmark suite."""
+    import warnings
+
+    from rliable import library as rly
+
+    with warnings.catch_warnings():  # arch's note that RandomState is on its way out
+        warnings.simplefilter("ignore", FutureWarning)
+        points, intervals = rly.get_interval_estimates(
+            scores, lambda *x: np.array([func(*x)]), reps=REPS, task_bootstrap=True,
+            random_state=np.random.RandomState(seed))
+    return {name: (float(points[name][0]), float(intervals[name][0][0]),
+                   float(intervals[name][1][0])) for name in points}
+
+
+def load(root: Path) -> dict[str, dict[str, Any]]:
+    """env id -> {"baselines": record, "trials": {algo: [records by seed]}}."""
+    out: dict[str, dict[str, Any]] = {}
+    for path in sorted((root / "baselines").glob("*.json")):
+        record = json.loads(path.read_text())
+        out.setdefault(record["env"], {"trials": {}})["baselines"] = record
+    for path in sorted((root / "runs").glob("*/*/seed*/evaluation.json")):
+        record = json.loads(path.read_text())
+        entry = out.setdefault(record["env"], {"trials": {}})
+        entry["trials"].setdefault(record["algo"], []).append(record)
+    for entry in out.values():
+        for records in entry["trials"].values():
+            records.sort(key=lambda r: r["seed"])
+    return out
+
+
+def _curves(root: Path, env_id: str, algo: str, seeds: list[int]) -> dict[str, Any] | None:
+    rows = []
+    for seed in seeds:
+        path = root / "runs" / env_name(env_id) / algo / f"seed{seed}" / "evaluations.npz"
+        if path.exists():
+            log = np.load(path)
+            rows.append((log["timesteps"], log["results"].mean(axis=1)))
+    if not rows:
+        return None
+    length = min(len(t) for t, _ in rows)
+    steps, returns = rows[0][0][:length], np.array([r[:length] for _, r in rows])
+    estimates = [_estimate({"x": returns[:, [i]]}, _iqm)["x"] for i in range(length)]
+    return {"timesteps": steps.tolist(), "iqm": [e[0] for e in estimates],
+            "low": [e[1] for e in estimates], "high": [e[2] for e in estimates]}
+
+
+def _iqm(x: np.ndarray) -> float:
+    from rliable import metrics
+
+    return float(metrics.aggregate_iqm(x))
+
+
+def summarise(root: Path, env_id: str, entry: dict[str, Any]) -> dict[str, Any]:
+    """The aggregate record of one env id."""
+    from rliable import metrics
+
+    baselines = entry["baselines"]["policies"]
+    oracle, random = np.array(baselines[ORACLE]["returns"]), np.array(baselines[RANDOM]["returns"])
+    span = oracle - random
+    informative = np.abs(span) > 1e-9 * np.maximum(1.0, np.abs(oracle))
+    runs: dict[str, dict[str, np.ndarray]] = {}
+    for name, metrics_ in baselines.items():
+        runs[name] = {"returns": np.array([metrics_["returns"]]),
+                      "successes": np.array([metrics_["successes"]], dtype=float),
+                      "decision_ms": np.array([metrics_["decision_ms"]])}
+    seeds = {}
+    for algo, records in entry["trials"].items():
+        for record in records:
+            if record["policy"]["returns"] and len(record["policy"]["returns"]) != len(oracle):
+                raise ValueError(f"{env_id} {algo} seed {record['seed']}: other task count")
+            if not np.allclose(record["oracle"]["returns"], oracle, rtol=0, atol=1e-9):
+                raise ValueError(f"{env_id} {algo} seed {record['seed']}: other tasks")
+        runs[algo] = {
+            "returns": np.array([r["policy"]["returns"] for r in records]),
+            "successes": np.array([r["policy"]["successes"] for r in records], dtype=float),
+            "decision_ms": np.array([r["policy"]["decision_ms"] for r in records]),
+        }
+        seeds[algo] = [r["seed"] for r in records]
+    scale = np.where(np.abs(oracle) > 0, np.abs(oracle), 1.0)
+    result: dict[str, Any] = {"env": env_id, "episodes": len(oracle),
+                              "task_seed": entry["baselines"]["task_seed"],
+                              "env_kwargs": entry["baselines"]["env_kwargs"],
+                              "informative_tasks": int(informative.sum()), "policies": {}}
+    for name, run in runs.items():
+        returns = run["returns"]
+        row = {"runs": len(returns), "seeds": seeds.get(name),
+               "success": _estimate({"x": run["successes"]}, metrics.aggregate_mean)["x"],
+               "gap": _estimate({"x": (oracle - returns) / scale}, _iqm)["x"],
+               "mean_return": float(returns.mean()),
+               "decision_ms": float(run["decision_ms"].mean())}
+        if informative.any():
+            score = (returns[:, informative] - random[informative]) / span[informative]
+            row["score"] = _estimate({"x": score}, _iqm)["x"]
+            run["score"] = score
+        result["policies"][name] = row
+    for algo in entry["trials"]:
+        row = result["policies"][algo]
+        if "score" not in runs[algo]:
+            continue
+        row["improvement"] = {
+            rival: _estimate({"x,y": (runs[algo]["score"], runs[rival]["score"])},
+                             metrics.probability_of_improvement)["x,y"]
+            for rival in RIVALS if "score" in runs[rival]
+        }
+        row["learning_curve"] = _curves(root, env_id, algo, seeds[algo])
+        # The committed model: the seed whose mean score is nearest the row's IQM.
+        per_run = runs[algo]["score"].mean(axis=1)
+        row["representative_seed"] = int(seeds[algo][int(np.argmin(np.abs(
+            per_run - row["score"][0])))])
+    return result
+
+
+def aggregate(root: Path) -> dict[str, dict[str, Any]]:
+    """Every env id of the sweep under ``root`` that has its baselines."""
+    return {env_id: summarise(root, env_id, entry)
+            for env_id, entry in sorted(load(root).items()) if "baselines" in entry}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m train.aggregate", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--root", type=Path, default=ROOT / "runs" / "sweep")
+    parser.add_argument("--out", type=Path, help="write the aggregate as JSON here")
+    args = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    records = aggregate(args.root)
+    for env_id, record in records.items():
+        print(f"\n{env_id} ({record['episodes']} held-out tasks)")
+        for name, row in record["policies"].items():
+            score = row.get("score")
+            text = "n/a" if score is None else f"{score[0]:.3f} [{score[1]:.3f}, {score[2]:.3f}]"
+            success = row["success"]
+            print(f"  {name:<14} runs {row['runs']}  score IQM {text}  success "
+                  f"{success[0]:.0%} [{success[1]:.0%}, {success[2]:.0%}]")
+    if args.out:
+        args.out.write_text(json.dumps(records, indent=1) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
