@@ -12,11 +12,15 @@ from gymnasium import spaces
 from envs.costs import TransitionCost
 from envs.kinematics import ARM_NAMES, make_arm
 from envs.models import SCENES, CollisionChecker, build_arm_model
+from envs.models.scene_file import load_scene_file
 from envs.models.scenes import CLUTTER_SLOTS, ClutterSlots, draw_clutter
 from envs.moves import MovePricer, TaskMoves
 from envs.observations import ObservationBuilder
 from envs.seeds import TRAIN_SCENES
 from envs.tasks import TASKS, Task
+from envs.tasks.file_task import FileTask
+from envs.tasks.waypoint_file import read_waypoints
+from envs.tools import Tool
 
 
 def _integer(value, name: str, minimum: int) -> int:
@@ -95,7 +99,7 @@ class IKBranchEnv(gym.Env):
     argument              default                 meaning
     ===================== ======================= ===========================================
     arm                   "anthropomorphic"       a name in ``envs.kinematics.ARM_NAMES``
-    scene                 "random_clutter"        "empty", "milling_cell", "random_clutter"
+    scene                 "random_clutter"        "empty", "milling_cell", "random_clutter", "file"
     task                  "random"                a name in ``envs.tasks.TASKS``
     n_waypoints           None                    waypoints per episode (None: the task's)
     lookahead             2                       later waypoints shown (H ≥ 0)
@@ -112,6 +116,12 @@ class IKBranchEnv(gym.Env):
     scene_seeds           None                    [lo, hi) of those (None: the training range)
     arm_params            None                    dict of arm parameters (``make_arm``)
     observation           "compact"               "compact" (O(K)) or "ladder" (O(K²), v0/v1)
+    task_file             None                    ``task="file"``: a waypoint file (CSV/JSON)
+    task_start            None                    its start q (None: free first branch)
+    task_points_abc       None                    four-point files: a, b, c (mm)
+    scene_file            None                    ``scene="file"``: an MJCF file of the cell
+    scene_options         None                    base_pos/_quat/_rpy, floor, decompose, …
+    tool                  None                    a tool (``envs/tools.py``); None: built-in
     render_mode           None                    None or "rgb_array"
     width                 480                     rendered frame width (px)
     height                360                     rendered frame height (px)
@@ -167,6 +177,12 @@ class IKBranchEnv(gym.Env):
         scene_seeds: list[int] | None = None,
         arm_params: dict[str, Any] | None = None,
         observation: str = "compact",
+        task_file: str | None = None,
+        task_start: list[float] | None = None,
+        task_points_abc: list[float] | None = None,
+        scene_file: str | None = None,
+        scene_options: dict[str, Any] | None = None,
+        tool: dict[str, Any] | None = None,
         render_mode: str | None = None,
         width: int = 480,
         height: int = 360,
@@ -183,7 +199,23 @@ class IKBranchEnv(gym.Env):
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         self.arm = make_arm(arm, **(arm_params or {}))
-        self._generator = TASKS[task]
+        self.tool = None if tool is None else Tool.from_spec(tool)
+        if (scene == "file") != (scene_file is not None):
+            raise ValueError("scene='file' and scene_file=PATH go together")
+        if scene_options is not None and scene != "file":
+            raise ValueError("scene_options are for scene='file'")
+        #: The scene file (its base pose maps its cell frame to the arm's), or None.
+        self.scene_file = None if scene_file is None else load_scene_file(
+            scene_file, **{k: v for k, v in (scene_options or {}).items()
+                           if k not in ("floor",)})
+        if (task == "file") != (task_file is not None):
+            raise ValueError("task='file' and task_file=PATH go together")
+        if task == "file":
+            self._generator = self._file_task(task_file, task_start, task_points_abc)
+        elif task_start is not None or task_points_abc is not None:
+            raise ValueError("task_start and task_points_abc are for task='file'")
+        else:
+            self._generator = TASKS[task]
         self._generator.check_arm(self.arm, scene)
         self.n_waypoints = _integer(
             self._generator.default_waypoints if n_waypoints is None else n_waypoints,
@@ -226,7 +258,9 @@ class IKBranchEnv(gym.Env):
         self.render_mode = render_mode
         self.scene = scene
         scene_kwargs = {"seed": scene_seed} if scene == "random_clutter" else {}
-        self.model = build_arm_model(self.arm, scene, **scene_kwargs)
+        if scene == "file":
+            scene_kwargs = {"scene_file": scene_file, **(scene_options or {})}
+        self.model = build_arm_model(self.arm, scene, tool=self.tool, **scene_kwargs)
         #: The per-episode clutter's obstacle slots (``scene_seed=None``), else None.
         self._clutter = ClutterSlots(self.model, CLUTTER_SLOTS) if (
             scene == "random_clutter" and scene_seed is None) else None
@@ -258,6 +292,30 @@ class IKBranchEnv(gym.Env):
         self.q = self.arm.home.copy()
         self.index = 0
         self.episode_collided = self.episode_invalid = False
+
+    def _file_task(self, path: str, start, abc) -> FileTask:
+        """The task of a waypoint file: poses in the cell frame when a scene file gives one
+        (else the arm's base frame), of the tool's TCP when a tool is given (else of the fk
+        frame). ``ValueError`` naming every row no branch reaches, and why."""
+        a, b, c = (None, None, None) if abc is None else abc
+        waypoints = read_waypoints(path, a=a, b=b, c=c)
+        poses = waypoints.poses
+        if self.scene_file is not None:
+            poses = self.scene_file.cell_to_base(poses)
+        if self.tool is not None:
+            poses = self.tool.flange_poses(poses)
+        if start is not None:
+            start = np.asarray(start, dtype=np.float64)
+            if start.shape != (self.arm.dof,) or not np.isfinite(start).all():
+                raise ValueError(f"task_start must be {self.arm.dof} finite joint values")
+            if not self.arm.within_limits(start):
+                raise ValueError(f"task_start {start.tolist()} lies outside the joint limits")
+        task = FileTask(waypoints, poses, start)
+        problems = task.unreachable(self.arm)
+        if problems:
+            raise ValueError(f"{len(problems)} of {len(poses)} waypoints cannot be reached "
+                             f"by {self.arm.name}:\n  " + "\n  ".join(problems))
+        return task
 
     # ------------------------------------------------------------------ shared pieces
     @property

@@ -232,6 +232,21 @@ class Arm(ABC):
         shape = (*batch_shape, self.n_branches)
         return candidates.reshape((*shape, self.dof)), ok.reshape(shape)
 
+    def reaches(self, pose) -> np.ndarray:
+        """(…,) bool: some closed-form branch exists for ``pose`` (…, 4, 4), the joint
+        limits aside: where ``ik`` finds no valid branch, this tells "out of reach" (False)
+        from "outside the joint limits" (True)."""
+        pose = as_float_array(pose, "pose")
+        if pose.ndim < 2 or pose.shape[-2:] != (4, 4):
+            raise ValueError(f"pose must have shape (..., 4, 4), got {pose.shape}")
+        flat = pose.reshape(-1, 4, 4)
+        with np.errstate(invalid="ignore"):
+            raw = self._ik_candidates(flat)
+        columns = raw if not isinstance(raw, np.ndarray) else [raw[..., j]
+                                                              for j in range(self.dof)]
+        exists = np.all([np.isfinite(np.asarray(c)) for c in columns], axis=0).any(axis=-1)
+        return exists.reshape(pose.shape[:-2])
+
     def within_limits(self, q) -> np.ndarray:
         """(…,) bool: every joint of ``q`` (…, dof) inside its limits (with ``LIMIT_TOL``)."""
         q = np.asarray(q, dtype=np.float64)

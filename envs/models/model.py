@@ -8,6 +8,7 @@ import mujoco
 import numpy as np
 
 from envs.kinematics import Arm, make_arm
+from envs.tools import Tool
 
 from .builders import COLLISION_BIT, TREE_BUILDERS, ArmTree, exclude
 from .scenes import SCENES, default_tool
@@ -62,13 +63,15 @@ def arm_spec(arm: Arm, *, tool: bool = False) -> tuple[mujoco.MjSpec, ArmTree]:
 
 
 def build_arm_model(
-    arm: Arm, scene: str = "empty", *, tool: bool | None = None, **scene_kwargs: Any
+    arm: Arm, scene: str = "empty", *, tool: bool | Tool | None = None, **scene_kwargs: Any
 ) -> mujoco.MjModel:
     """Compile ``arm`` (any registered ``Arm`` instance, any parameters) in ``scene``.
 
-    ``tool`` adds the held tool (a 0.35 m cylinder along y3 from the wrist centre, body
-    ``tool``); by default it is on in scenes that are about carrying a tool (the milling
-    cell). ``scene_kwargs`` go to the scene builder (e.g. ``seed`` for ``random_clutter``).
+    ``tool``: True adds the built-in held tool (a 0.35 m cylinder along the tool axis from
+    the fk frame, body ``tool``); by default it is on in scenes that are about carrying a
+    tool (the milling cell); a :class:`~envs.tools.Tool` adds that tool instead (its solid
+    in body ``tool`` on the fk frame, a site ``tcp`` at its TCP). ``scene_kwargs`` go to
+    the scene builder (e.g. ``seed`` for ``random_clutter``).
     """
     try:
         scene_builder = SCENES[scene]
@@ -76,10 +79,67 @@ def build_arm_model(
         raise ValueError(f"unknown scene {scene!r}; choose one of {', '.join(SCENES)}") from None
     if tool is None:
         tool = default_tool(scene)
-    spec, tree = arm_spec(arm, tool=tool)
+    spec, tree = arm_spec(arm, tool=tool is True)
+    if isinstance(tool, Tool):
+        add_tool(spec, tree, tool)
     model = scene_builder(spec, arm, tree, **scene_kwargs)
     check_joint_order(model, arm)
     return model
+
+
+def add_tool(spec: mujoco.MjSpec, tree: ArmTree, tool: Tool) -> None:
+    """``tool``'s solid (visual and collision twins) in a body ``tool`` welded to the fk
+    frame (the site ``ee``), and a site ``tcp`` at its TCP. The tool does not collide with
+    the two bodies before the fk frame's (it is mounted through them)."""
+    from .builders import TOOL_RGBA, add_part
+
+    if not tree.ee_body:
+        raise ValueError("a tool needs an arm with an fk frame (site ee); two-arm systems "
+                         "have none")
+    ee = spec.site("ee")
+    holder = spec.body(tree.ee_body).add_body()
+    holder.name = "tool"
+    holder.pos, holder.quat = np.array(ee.pos), np.array(ee.quat)
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, tool.offset[:3, :3].ravel())
+    if tool.shape == "mesh":
+        mesh = spec.add_mesh()
+        mesh.name = "tool_mesh"
+        mesh.file = str(tool.mesh.resolve())
+        for visual in (True, False):
+            geom = holder.add_geom()
+            geom.name = "tool_vis" if visual else "tool"
+            geom.type, geom.meshname = mujoco.mjtGeom.mjGEOM_MESH, mesh.name
+            geom.pos, geom.quat = tool.offset[:3, 3], quat
+            geom.contype = geom.conaffinity = 0 if visual else 1
+            geom.group = 2 if visual else 3
+            geom.rgba = TOOL_RGBA
+    elif tool.shape == "cylinder":
+        radius, length = tool.size
+        start, end = tool.offset[:3, 3], tool.offset[:3, 3] + length * tool.offset[:3, 2]
+        add_part(holder, "tool", "cylinder", [radius], TOOL_RGBA,
+                 fromto=np.concatenate([start, end]))
+    else:
+        half = np.array(tool.size) / 2
+        centre = tool.offset[:3, 3] + half[2] * tool.offset[:3, 2]
+        add_part(holder, "tool", "box", half, TOOL_RGBA, pos=centre, quat=quat)
+    site = holder.add_site()
+    site.name = "tcp"
+    site.pos = tool.tcp[:3, 3]
+    tcp_quat = np.zeros(4)
+    mujoco.mju_mat2Quat(tcp_quat, tool.tcp[:3, :3].ravel())
+    site.quat = tcp_quat
+    site.size = np.array([0.02, 0.0, 0.0])
+    tree.tool_body = holder.name
+    body, mounts = spec.body(tree.ee_body), []
+    for _ in range(2):
+        parent = body.parent
+        if parent is None or parent.name in ("world", "base"):
+            break
+        mounts.append(parent.name)
+        body = parent
+    for name in mounts:
+        exclude(spec, name, "tool")
 
 
 def build_model(

@@ -15,6 +15,7 @@ name               arms                         waypoints
 ``relative_motion_free`` two-arm systems        the same, its sweep a collision-free path
 ``tool_changes``   anthropomorphic, milling cell above slot, slot, above slot, spindle …
 ``paper_transfer`` anthropomorphic              the paper's positions 1 → 2
+``file``           six-DOF pose arms            the poses of a waypoint file (``task_file``)
 ================== ============================ ==========================================
 
 (†) A full Frenet circle turns the gripper once about the vertical: the anthropomorphic
@@ -35,7 +36,7 @@ from .relative_motion import relative_motion, relative_motion_free
 from .tool_transfer import paper_transfer, tool_changes
 from .waypoint_file import WaypointFile, WaypointFileError, read_waypoints, write_waypoints
 
-TASKS: dict[str, TaskGenerator] = {
+TASKS: dict[str, TaskGenerator | None] = {
     "random": random_reachable,
     "helix": helix,
     "circle": circle,
@@ -44,6 +45,8 @@ TASKS: dict[str, TaskGenerator] = {
     "relative_motion_free": relative_motion_free,
     "tool_changes": tool_changes,
     "paper_transfer": paper_transfer,
+    # The env builds a FileTask from ``task_file=PATH`` (envs/tasks/file_task.py).
+    "file": None,
 }
 
 __all__ = [

@@ -1,0 +1,49 @@
+"""``task="file"``: one fixed task, read from a waypoint file (``envs/tasks/waypoint_file.py``)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from envs.kinematics import Arm
+
+from .base import FreePredicate, PathPredicate, Task
+from .waypoint_file import WaypointFile
+
+
+class FileTask:
+    """The waypoints of ``waypoints`` (poses already in the arm's base frame and of its fk
+    frame: ``poses`` (N, 4, 4)) every episode, from ``start`` (dof,), or, with ``start``
+    None, from a free choice of the first waypoint's branch at no cost (as the paper's
+    transfer starts in the rack)."""
+
+    fixed_waypoints = True
+
+    def __init__(self, waypoints: WaypointFile, poses: np.ndarray,
+                 start: np.ndarray | None) -> None:
+        self.waypoints = waypoints
+        self.poses = np.array(poses, dtype=np.float64)
+        self.poses.flags.writeable = False
+        self.start = None if start is None else np.array(start, dtype=np.float64)
+        self.default_waypoints = len(self.poses)
+
+    def __call__(self, arm: Arm, rng: np.random.Generator, n_waypoints: int,
+                 is_free: FreePredicate, is_path_free: PathPredicate) -> Task:
+        if self.start is None:
+            return Task(start=arm.home.copy(), poses=self.poses, free_start=True)
+        return Task(start=self.start.copy(), poses=self.poses)
+
+    def check_arm(self, arm: Arm, scene: str) -> None:
+        if arm.target != "pose":
+            raise ValueError(f"waypoint files give poses; {arm.name} is position-only")
+
+    def unreachable(self, arm: Arm) -> list[str]:
+        """Per row that no branch reaches, the reason (``where``: out of reach, or every
+        branch outside the joint limits)."""
+        _, valid = arm.ik(self.poses)
+        rows = np.flatnonzero(~valid.any(axis=-1))
+        if not len(rows):
+            return []
+        exists = arm.reaches(self.poses[rows])
+        return [str(self.waypoints.row_error(
+            int(row), "every branch lies outside the joint limits" if inside else
+            "out of reach (no branch exists)")) for row, inside in zip(rows, exists, strict=True)]
