@@ -64,6 +64,10 @@ ENV_SPECS.update({
     # Industrial arms (issue 12): their real limits, every turn branch.
     "IKBranch/KukaKR6-v0": {"arm": "kuka_kr6_r700", **_CLUTTER},
     "IKBranch/UR5e-v0": {"arm": "ur5e", **_CLUTTER},
+    # Unwinding: a nut runner whose last joint (±400°) must be turned the right way.
+    "IKBranch/IRB2600Screwing-v0": {
+        "arm": "abb_irb2600", "scene": "empty", "task": "screwing", **_COMPACT,
+    },
 })
 ENV_IDS: tuple[str, ...] = tuple(ENV_SPECS)
 

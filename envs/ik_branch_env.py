@@ -12,15 +12,19 @@ from gymnasium import spaces
 from envs.costs import TransitionCost
 from envs.kinematics import ARM_NAMES, make_arm
 from envs.models import SCENES, CollisionChecker, build_arm_model
-from envs.models.scene_file import load_scene_file
+from envs.models.scene_file import base_pose, load_scene_file
 from envs.models.scenes import CLUTTER_SLOTS, ClutterSlots, draw_clutter
 from envs.moves import MovePricer, TaskMoves
 from envs.observations import ObservationBuilder
 from envs.seeds import TRAIN_SCENES
+from envs.task_frame import FramedArm, TaskFrame
 from envs.tasks import TASKS, Task
 from envs.tasks.file_task import FileTask
 from envs.tasks.waypoint_file import read_waypoints
 from envs.tools import Tool
+
+#: ``scene_options`` placing the arm's base in the cell (m; unit quaternion or rpy, rad).
+BASE_KEYS = ("base_pos", "base_quat", "base_rpy")
 
 
 def _integer(value, name: str, minimum: int) -> int:
@@ -202,12 +206,21 @@ class IKBranchEnv(gym.Env):
         self.tool = None if tool is None else Tool.from_spec(tool)
         if (scene == "file") != (scene_file is not None):
             raise ValueError("scene='file' and scene_file=PATH go together")
-        if scene_options is not None and scene != "file":
-            raise ValueError("scene_options are for scene='file'")
+        if scene_options is not None and scene not in ("file", "milling_cell"):
+            raise ValueError("scene_options are for scene='file' and 'milling_cell'")
+        options = dict(scene_options or {})
         #: The scene file (its base pose maps its cell frame to the arm's), or None.
         self.scene_file = None if scene_file is None else load_scene_file(
-            scene_file, **{k: v for k, v in (scene_options or {}).items()
-                           if k not in ("floor",)})
+            scene_file, **{k: v for k, v in options.items() if k not in ("floor",)})
+        if self.scene_file is not None:
+            cell_from_base = self.scene_file.base_pose
+        else:
+            cell_from_base = base_pose(**{k: options[k] for k in BASE_KEYS if k in options})
+        #: Task poses are in the cell, of the tool's TCP: this maps them to the fk frame.
+        self.task_frame = TaskFrame(cell_from_base,
+                                    None if self.tool is None else self.tool.tcp)
+        self._task_arm = (self.arm if self.task_frame.identity
+                          else FramedArm(self.arm, self.task_frame))
         if (task == "file") != (task_file is not None):
             raise ValueError("task='file' and task_file=PATH go together")
         if task == "file":
@@ -216,7 +229,7 @@ class IKBranchEnv(gym.Env):
             raise ValueError("task_start and task_points_abc are for task='file'")
         else:
             self._generator = TASKS[task]
-        self._generator.check_arm(self.arm, scene)
+        self._generator.check_arm(self._task_arm, scene)
         self.n_waypoints = _integer(
             self._generator.default_waypoints if n_waypoints is None else n_waypoints,
             "n_waypoints", 1,
@@ -259,7 +272,9 @@ class IKBranchEnv(gym.Env):
         self.scene = scene
         scene_kwargs = {"seed": scene_seed} if scene == "random_clutter" else {}
         if scene == "file":
-            scene_kwargs = {"scene_file": scene_file, **(scene_options or {})}
+            scene_kwargs = {"scene_file": scene_file, **options}
+        elif scene == "milling_cell":
+            scene_kwargs = options
         self.model = build_arm_model(self.arm, scene, tool=self.tool, **scene_kwargs)
         #: The per-episode clutter's obstacle slots (``scene_seed=None``), else None.
         self._clutter = ClutterSlots(self.model, CLUTTER_SLOTS) if (
@@ -300,10 +315,6 @@ class IKBranchEnv(gym.Env):
         a, b, c = (None, None, None) if abc is None else abc
         waypoints = read_waypoints(path, a=a, b=b, c=c)
         poses = waypoints.poses
-        if self.scene_file is not None:
-            poses = self.scene_file.cell_to_base(poses)
-        if self.tool is not None:
-            poses = self.tool.flange_poses(poses)
         if start is not None:
             start = np.asarray(start, dtype=np.float64)
             if start.shape != (self.arm.dof,) or not np.isfinite(start).all():
@@ -311,7 +322,7 @@ class IKBranchEnv(gym.Env):
             if not self.arm.within_limits(start):
                 raise ValueError(f"task_start {start.tolist()} lies outside the joint limits")
         task = FileTask(waypoints, poses, start)
-        problems = task.unreachable(self.arm)
+        problems = task.unreachable(self._task_arm)
         if problems:
             raise ValueError(f"{len(problems)} of {len(poses)} waypoints cannot be reached "
                              f"by {self.arm.name}:\n  " + "\n  ".join(problems))
@@ -364,8 +375,11 @@ class IKBranchEnv(gym.Env):
         if self._clutter is not None:
             self._lay_scene(int(self.np_random.integers(*self.scene_seeds)))
         task = self._generator(
-            self.arm, self.np_random, self.n_waypoints, pricer.is_free, pricer.is_path_free
+            self._task_arm, self.np_random, self.n_waypoints, pricer.is_free, pricer.is_path_free
         )
+        if not self.task_frame.identity:  # the task speaks in the cell, of the TCP
+            task = Task(start=task.start, poses=self.task_frame.to_fk(task.poses),
+                        free_start=task.free_start)
         self._start(task, pricer.task(task))
         info = {"waypoint": 0}
         if self._clutter is not None:

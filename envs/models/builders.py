@@ -186,8 +186,9 @@ def compile_spec(spec: mujoco.MjSpec,
     return spec.compile()
 
 
-def add_static_body(spec: mujoco.MjSpec, name: str) -> mujoco.MjsBody:
-    body = spec.worldbody.add_body()
+def add_static_body(spec: mujoco.MjSpec, name: str, parent=None) -> mujoco.MjsBody:
+    """A body without joints under ``parent`` (default the world): fixed in the world."""
+    body = (spec.worldbody if parent is None else parent).add_body()
     body.name = name
     return body
 

@@ -68,14 +68,37 @@ def _box(body, name, lo, hi, rgba) -> None:
     add_part(body, name, "box", (hi - lo) / 2, rgba, pos=(hi + lo) / 2)
 
 
-def milling_cell(spec: mujoco.MjSpec, arm: Arm, tree: ArmTree) -> mujoco.MjModel:
+def milling_cell(spec: mujoco.MjSpec, arm: Arm, tree: ArmTree, *, base_pos=None,
+                 base_quat=None, base_rpy=None) -> mujoco.MjModel:
     """Tool rack around position 1 and a C-frame vertical milling machine at position 2.
 
     Every obstacle is placed relative to the paper's poses, so the cell follows the
-    worked example's points rather than the arm's link lengths.
+    worked example's points rather than the arm's link lengths. The anthropomorphic arm
+    of the worked example stands at the cell's origin; any other six-DOF arm stands where
+    ``base_pos`` (and a turn about the vertical, ``base_quat``/``base_rpy``) puts its base
+    on the cell's floor (the model's world stays the arm's base frame: the cell moves).
     """
-    if arm.name != "anthropomorphic":
-        raise ValueError("the milling cell is the anthropomorphic arm's worked example")
+    if arm.target != "pose" or arm.dof != 6 or not tree.ee_body:
+        raise ValueError(f"the milling cell needs a six-DOF single arm, not {arm.name!r}")
+    placed = base_pos is not None or base_quat is not None or base_rpy is not None
+    cell = spec.worldbody
+    if placed:
+        from .scene_file import base_pose
+
+        pose = base_pose(base_pos, base_quat, base_rpy)
+        level = abs(pose[2, 3]) < 1e-9 and np.allclose(pose[:3, 2], (0.0, 0.0, 1.0),
+                                                        atol=1e-9)
+        if not level:
+            raise ValueError("the arm's base stands on the cell's floor: base_pos z = 0 "
+                             "and a turn about the vertical only")
+        inverse = np.eye(4)
+        inverse[:3, :3], inverse[:3, 3] = pose[:3, :3].T, -(pose[:3, :3].T @ pose[:3, 3])
+        cell = spec.worldbody.add_body()
+        cell.name = "cell"
+        cell.pos = inverse[:3, 3]
+        quat = np.zeros(4)
+        mujoco.mju_mat2Quat(quat, inverse[:3, :3].ravel())
+        cell.quat = quat
     pose1, pose2 = milling_cell_poses()
     o1, tool_axis1 = pose1[:3, 3], pose1[:3, 1]
     o2, tool_axis2 = pose2[:3, 3], pose2[:3, 1]
@@ -88,7 +111,7 @@ def milling_cell(spec: mujoco.MjSpec, arm: Arm, tree: ArmTree) -> mujoco.MjModel
     # the tool's far half (clear of the gripper near O), one per rack slot: slot 0 is the
     # paper's position 1, the others continue the rack on the −Y0 side (away from the
     # machine). The slots are where tool_changes tasks fetch and return tools.
-    rack = add_static_body(spec, "rack")
+    rack = add_static_body(spec, "rack", parent=cell)
     offsets = RACK_SLOT_OFFSETS_Y
     _box(rack, "rack_cabinet", (x1 - 0.12, y1 + min(offsets) - 0.12, 0.0),
          (x1 + 0.48, y1 + max(offsets) + 0.15, z1 - 0.2), RACK_RGBA)
@@ -101,7 +124,7 @@ def milling_cell(spec: mujoco.MjSpec, arm: Arm, tree: ArmTree) -> mujoco.MjModel
     # column behind (−X0), the table and bed below the gripper.
     x2, y2, z2 = o2
     nose = z2 + tool_length + SPINDLE_CLEARANCE
-    machine = add_static_body(spec, "mill")
+    machine = add_static_body(spec, "mill", parent=cell)
     add_part(machine, "mill_quill", "cylinder", [0.09], MACHINE_RGBA,
              fromto=[x2, y2, nose, x2, y2, nose + 0.40])
     _box(machine, "mill_head", (x2 - 0.65, y2 - 0.20, nose + 0.40), (x2 + 0.17, y2 + 0.20, 2.35),

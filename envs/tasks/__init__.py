@@ -15,6 +15,7 @@ name               arms                         waypoints
 ``relative_motion_free`` two-arm systems        the same, its sweep a collision-free path
 ``tool_changes``   anthropomorphic, milling cell above slot, slot, above slot, spindle …
 ``paper_transfer`` anthropomorphic              the paper's positions 1 → 2
+``screwing``       six-DOF pose arms            the tool turning about its axis, 480–960°
 ``file``           six-DOF pose arms            the poses of a waypoint file (``task_file``)
 ================== ============================ ==========================================
 
@@ -33,6 +34,7 @@ from .base import Task, TaskGenerator
 from .paths import circle, helix, line
 from .random_reachable import random_reachable
 from .relative_motion import relative_motion, relative_motion_free
+from .screwing import screwing
 from .tool_transfer import paper_transfer, tool_changes
 from .waypoint_file import WaypointFile, WaypointFileError, read_waypoints, write_waypoints
 
@@ -45,6 +47,7 @@ TASKS: dict[str, TaskGenerator | None] = {
     "relative_motion_free": relative_motion_free,
     "tool_changes": tool_changes,
     "paper_transfer": paper_transfer,
+    "screwing": screwing,
     # The env builds a FileTask from ``task_file=PATH`` (envs/tasks/file_task.py).
     "file": None,
 }

@@ -11,10 +11,10 @@ from .waypoint_file import WaypointFile
 
 
 class FileTask:
-    """The waypoints of ``waypoints`` (poses already in the arm's base frame and of its fk
-    frame: ``poses`` (N, 4, 4)) every episode, from ``start`` (dof,), or, with ``start``
-    None, from a free choice of the first waypoint's branch at no cost (as the paper's
-    transfer starts in the rack)."""
+    """The waypoints of ``waypoints`` (``poses`` (N, 4, 4), in the task frame: the cell,
+    of the TCP; ``envs/task_frame.py``) every episode, from ``start`` (dof,), or, with
+    ``start`` None, from a free choice of the first waypoint's branch at no cost (as the
+    paper's transfer starts in the rack)."""
 
     fixed_waypoints = True
 
@@ -37,8 +37,8 @@ class FileTask:
             raise ValueError(f"waypoint files give poses; {arm.name} is position-only")
 
     def unreachable(self, arm: Arm) -> list[str]:
-        """Per row that no branch reaches, the reason (``where``: out of reach, or every
-        branch outside the joint limits)."""
+        """Per row that no branch of ``arm`` (seen from the task frame) reaches, the
+        reason: out of reach, or every branch outside the joint limits."""
         _, valid = arm.ik(self.poses)
         rows = np.flatnonzero(~valid.any(axis=-1))
         if not len(rows):

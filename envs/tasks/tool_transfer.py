@@ -9,7 +9,7 @@ import numpy as np
 from envs.kinematics import Arm
 from envs.kinematics.paper_example import example_poses, rack_slot_poses
 
-from .base import FreePredicate, PathPredicate, Task, task_generator
+from .base import FreePredicate, PathPredicate, Task, require_pose_arm, task_generator
 
 #: A tool is symmetric about its axis y3, so the gripper may hold it either way round:
 #: the second grip is the first turned half a turn about y3.
@@ -58,7 +58,7 @@ def _require_anthropomorphic(arm: Arm, scene: str) -> None:
 
 
 def _require_cell(arm: Arm, scene: str) -> None:
-    _require_anthropomorphic(arm, scene)
+    require_pose_arm(arm, scene)
     if scene != "milling_cell":
         raise ValueError("tool_changes needs scene='milling_cell' (its rack and spindle)")
 

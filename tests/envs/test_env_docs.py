@@ -103,9 +103,11 @@ def test_bad_arguments_fail_at_make_with_a_clear_value_error(kwargs, message):
 @pytest.mark.parametrize(
     ("env_id", "kwargs", "message"),
     [
-        ("IKBranch/Cartesian-v1", {"task": "tool_changes"}, "anthropomorphic"),
-        ("IKBranch/Cartesian-v1", {"scene": "milling_cell"}, "milling cell"),
-        ("IKBranch/ToolTransfer-v0", {"arm": "spherical"}, "anthropomorphic"),
+        ("IKBranch/Cartesian-v1", {"task": "tool_changes"}, "milling_cell"),
+        ("IKBranch/RodMechanism-v1", {"scene": "milling_cell"}, "six-DOF single arm"),
+        ("IKBranch/ToolTransfer-v0", {"arm": "dual_rrp_rpp"}, "six-DOF single arm"),
+        ("IKBranch/ToolTransfer-v0", {"task": "paper_transfer", "arm": "spherical"},
+         "anthropomorphic"),
         ("IKBranch/ToolTransfer-v0", {"task": "paper_transfer", "n_waypoints": 3}, "exactly 2"),
         ("IKBranch/RodMechanism-v1", {"task": "relative_motion"}, "two-arm"),
         ("IKBranch/RodMechanism-v1", {"task": "helix"}, "six-DOF single arm"),

@@ -113,10 +113,19 @@ def test_paper_transfer_is_the_worked_example():
 
 
 @pytest.mark.parametrize("arm_name", [n for n in ARM_NAMES if n != "anthropomorphic"])
-@pytest.mark.parametrize("task_name", ["tool_changes", "paper_transfer"])
-def test_milling_cell_tasks_need_the_anthropomorphic_arm(task_name, arm_name):
+def test_the_papers_transfer_needs_the_anthropomorphic_arm(arm_name):
     with pytest.raises(ValueError, match="anthropomorphic"):
-        TASKS[task_name].check_arm(make_arm(arm_name), "milling_cell")
+        TASKS["paper_transfer"].check_arm(make_arm(arm_name), "milling_cell")
+
+
+@pytest.mark.parametrize("arm_name", ARM_NAMES)
+def test_tool_changes_need_a_six_dof_single_arm(arm_name):
+    arm = make_arm(arm_name)
+    if arm.dof == 6 and arm.target == "pose" and not arm_name.startswith("dual_"):
+        TASKS["tool_changes"].check_arm(arm, "milling_cell")  # any such arm, placed in it
+    else:
+        with pytest.raises(ValueError, match="six-DOF single arm"):
+            TASKS["tool_changes"].check_arm(arm, "milling_cell")
 
 
 def test_tool_changes_need_the_milling_cell():
