@@ -52,6 +52,8 @@ from . import native
 #: when its lower bound exceeds the contact margin by this much.
 DISTANCE_TOLERANCE = 1e-6
 
+#: A pair (kind) whose static partner lies beyond the moving geom's reach: skipped.
+OUT_OF_REACH = 3
 #: Container shapes (codes shared with the kernels).
 SPHERE, CAPSULE, BOX, CYLINDER, PLANE, UNBOUNDED = 0, 1, 2, 3, 4, 5
 #: Joint type codes, MuJoCo's own.
@@ -96,6 +98,8 @@ class CompiledScene:
     pair_kind: np.ndarray
     pair_fixed: np.ndarray
     slot_pairs: np.ndarray
+    pair_kind_own: np.ndarray
+    slot_extent: np.ndarray
     pair_margin: np.ndarray
     pair_lever: np.ndarray
     pair_reach: np.ndarray
@@ -286,6 +290,7 @@ def compile_scene(model: mujoco.MjModel, dof: int, pairs: np.ndarray) -> Compile
     slot_type = np.zeros(n_slots, dtype=np.int64)
     slot_size, slot_radius = np.zeros((n_slots, 3)), np.zeros(n_slots)
     levers, moved = np.zeros((n_slots, model.njnt)), np.zeros((n_slots, model.njnt), dtype=bool)
+    extent = np.full(n_slots, np.inf)  # moving slots: farthest reach from the world origin
     for s, g in enumerate(geoms):
         kind, size, offset, radius = container(model, int(g))
         slot_type[s], slot_size[s], slot_radius[s] = kind, size, radius
@@ -300,6 +305,9 @@ def compile_scene(model: mujoco.MjModel, dof: int, pairs: np.ndarray) -> Compile
         levers[s] = _levers(model, int(slot_body[s]), slot_pos[s],
                             radius if np.isfinite(radius) else 0.0, dof)
         moved[s] = _moved_by(model, int(slot_body[s]))
+        chain = list(reversed(_ancestors(model, int(slot_body[s]))))
+        extent[s] = float(np.linalg.norm(model.body_pos[chain[0]])) + _reach_after(
+            model, chain, slot_pos[s], radius if np.isfinite(radius) else 0.0, dof)
 
     # Pairs grouped by their moving slot a (the kernel loads a's frame once per group), a
     # static solid partner first, then a plane, then a moving one: (a, kind) order.
@@ -358,6 +366,8 @@ def compile_scene(model: mujoco.MjModel, dof: int, pairs: np.ndarray) -> Compile
         pair_kind=pair_kind,
         pair_fixed=pair_fixed,
         slot_pairs=slot_pairs,
+        pair_kind_own=pair_kind.copy(),
+        slot_extent=extent,
         pair_margin=margin + DISTANCE_TOLERANCE,
         pair_lever=pair_lever,
         # Bounding radii plus margin: a plane (always ``b``) adds no radius.
@@ -400,6 +410,11 @@ def refresh_static(scene: CompiledScene, model: mujoco.MjModel,
     partner = np.where(scene.slot_type[b] == PLANE, 0.0, scene.slot_radius[b])
     scene.pair_reach[pairs] = scene.slot_radius[scene.pair_a[pairs]] + partner + scene.pair_margin[
         pairs]
+    # A static geom beyond everything a's points can ever reach (a parked obstacle slot)
+    # cannot come within the margin: its pairs are skipped (kind 3) until it moves back.
+    gap = np.linalg.norm(scene.slot_pos[b], axis=1) - partner - scene.pair_margin[pairs]
+    far = (scene.pair_kind_own[pairs] == 0) & (gap > scene.slot_extent[scene.pair_a[pairs]])
+    scene.pair_kind[pairs] = np.where(far, OUT_OF_REACH, scene.pair_kind_own[pairs])
 
 
 # -------------------------------------------------------------------- distance kernels
@@ -865,6 +880,8 @@ def _sample_step(tree, geometry, qpos, xpos, xmat, wpos, wrot, rates, coarse, ca
             reach = pair_reach[k]
             limit = reach + rates[k] * cap
             kind = pair_kind[k]
+            if kind == 3:  # OUT_OF_REACH
+                continue
             if kind == 1:
                 height = (pair_fixed[k, 3] * (ax - pair_fixed[k, 0])
                           + pair_fixed[k, 4] * (ay - pair_fixed[k, 1])

@@ -118,3 +118,27 @@ def test_a_new_scene_forgets_the_old_verdicts():
     second = pricer.paths_collide(q0, q1)
     np.testing.assert_array_equal(second, env.checker.paths_collide(q0, q1))
     assert not np.array_equal(first, second)
+
+
+def test_parked_slots_are_skipped_and_come_back_when_laid():
+    # A parked slot (100 m below) is beyond every arm geom's reach: its pairs are marked
+    # OUT_OF_REACH and skipped; laid again, they are checked again.
+    from envs.models.compiled import OUT_OF_REACH
+
+    env = _env("anthropomorphic")
+    scene = env.checker._filter.scene
+    slots = env._clutter.geoms
+    in_slots = np.isin(scene.slot_geom[scene.pair_b], slots)
+    for seed in range(40):
+        env._lay_scene(seed)
+        parked = env.model.geom_pos[slots, 2] < -50.0
+        if parked.any() and not parked.all():
+            break
+    else:
+        pytest.fail("no scene with both parked and laid slots")
+    parked_geoms = slots[parked]
+    skipped = scene.pair_kind == OUT_OF_REACH
+    of_parked = np.isin(scene.slot_geom[scene.pair_b], parked_geoms)
+    assert skipped[of_parked].all() and of_parked.any()
+    assert not skipped[in_slots & ~of_parked].any()  # the laid ones stay near the arm
+    assert not skipped[~in_slots].any()  # the fixed scene is never skipped
