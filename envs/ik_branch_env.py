@@ -25,6 +25,11 @@ from envs.tools import Tool
 
 #: ``scene_options`` placing the arm's base in the cell (m; unit quaternion or rpy, rad).
 BASE_KEYS = ("base_pos", "base_quat", "base_rpy")
+#: The ``scene_options`` each scene takes.
+SCENE_OPTIONS: dict[str, tuple[str, ...]] = {
+    "file": (*BASE_KEYS, "floor", "decompose", "coacd_options"),
+    "milling_cell": BASE_KEYS,
+}
 
 
 def _integer(value, name: str, minimum: int) -> int:
@@ -206,9 +211,13 @@ class IKBranchEnv(gym.Env):
         self.tool = None if tool is None else Tool.from_spec(tool)
         if (scene == "file") != (scene_file is not None):
             raise ValueError("scene='file' and scene_file=PATH go together")
-        if scene_options is not None and scene not in ("file", "milling_cell"):
+        if scene_options is not None and scene not in SCENE_OPTIONS:
             raise ValueError("scene_options are for scene='file' and 'milling_cell'")
         options = dict(scene_options or {})
+        unknown = sorted(set(options) - set(SCENE_OPTIONS.get(scene, ())))
+        if unknown:
+            raise ValueError(f"unknown scene_options {unknown} for scene {scene!r}; it takes "
+                             f"{', '.join(SCENE_OPTIONS[scene])}")
         #: The scene file (its base pose maps its cell frame to the arm's), or None.
         self.scene_file = None if scene_file is None else load_scene_file(
             scene_file, **{k: v for k, v in options.items() if k not in ("floor",)})
@@ -312,6 +321,7 @@ class IKBranchEnv(gym.Env):
         """The task of a waypoint file: poses in the cell frame when a scene file gives one
         (else the arm's base frame), of the tool's TCP when a tool is given (else of the fk
         frame). ``ValueError`` naming every row no branch reaches, and why."""
+        FileTask.check_arm(self._task_arm, "file")  # before the rows: a position-only arm
         a, b, c = (None, None, None) if abc is None else abc
         waypoints = read_waypoints(path, a=a, b=b, c=c)
         poses = waypoints.poses

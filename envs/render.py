@@ -45,10 +45,19 @@ def framing_camera(
     azimuth: float = 135.0,
     elevation: float = -28.0,
     zoom: float = 1.0,
+    geoms: np.ndarray | None = None,
 ) -> mujoco.MjvCamera:
     """A free camera that frames every non-plane geom at each of ``configurations``
-    (leading qpos entries; none: ``data``'s current qpos)."""
+    (leading qpos entries; none: ``data``'s current qpos). ``geoms``: frame only these
+    (a bool mask or indices over the model's geoms, e.g. :func:`arm_geoms`), so a large
+    cell does not shrink the arm to a few pixels."""
     solid = model.geom_type != mujoco.mjtGeom.mjGEOM_PLANE
+    if geoms is not None:
+        chosen = np.zeros(model.ngeom, dtype=bool)
+        chosen[np.asarray(geoms)] = True
+        solid &= chosen
+        if not solid.any():
+            raise ValueError("framing_camera: no non-plane geom among the chosen ones")
     radii = model.geom_rbound[solid][:, None]
     lower, upper = np.full(3, np.inf), np.full(3, -np.inf)
     for q in list(configurations) or [data.qpos[: model.nq].copy()]:
@@ -69,12 +78,21 @@ def framing_camera(
     return camera
 
 
+def arm_geoms(model: mujoco.MjModel) -> np.ndarray:
+    """(ngeom,) bool: the geoms of the kinematic trees that have joints (the arm, its base
+    and a held tool), not the static obstacles of the scene."""
+    moving_roots = {int(model.body_rootid[b]) for b in range(model.nbody)
+                    if model.body_jntnum[b] > 0}
+    return np.isin(model.body_rootid[model.geom_bodyid], list(moving_roots))
+
+
 class SceneRenderer:
     """Offscreen RGB frames of a model at given arm configurations.
 
     ``render(q)`` sets the first ``len(q)`` qpos entries, runs kinematics and returns an
     (height, width, 3) uint8 array. The camera is framed once, at construction, around the
-    configurations ``frame_qs`` (default: qpos0), so the frames of an animation share it.
+    configurations ``frame_qs`` (default: qpos0), so the frames of an animation share it;
+    ``frame_geoms`` frames only those geoms (``framing_camera``'s ``geoms``).
     ``show_collision`` draws the collision geoms instead of the visual ones.
     """
 
@@ -89,6 +107,7 @@ class SceneRenderer:
         show_collision: bool = False,
         azimuth: float = 135.0,
         elevation: float = -28.0,
+        frame_geoms: np.ndarray | None = None,
     ) -> None:
         self.model = model
         self.data = mujoco.MjData(model)
@@ -98,7 +117,7 @@ class SceneRenderer:
         self._option.geomgroup[COLLISION_GROUP] = show_collision
         if camera is None:
             camera = framing_camera(model, self.data, frame_qs, azimuth=azimuth,
-                                    elevation=elevation)
+                                    elevation=elevation, geoms=frame_geoms)
         self.camera = camera
 
     def render(self, q: Sequence[float] | None = None) -> np.ndarray:

@@ -75,6 +75,9 @@ class Arm(ABC):
     closed_form_labels: ClassVar[tuple[str, ...]]
     #: "pose" arms read the whole (4, 4) target; "position" arms only its translation.
     target: ClassVar[str] = "pose"
+    #: True for two-arm systems: ``fk`` is one arm's output link relative to the other's,
+    #: not a tool in the world, so world-frame tasks and cells are not for them.
+    relative: ClassVar[bool] = False
     #: The scalar twin of ``_ik_candidates`` used by the compiled single-pose path (see
     #: ``envs/kinematics/compiled.py``): ``kernel(m, params, out)`` writes the closed-form
     #: rows of the (4, 4) float array ``m`` into ``out`` (Kc, dof), which arrives NaN;

@@ -139,6 +139,7 @@ class DualRrpRppArm(Arm):
     """
 
     name: ClassVar[str] = "dual_rrp_rpp"
+    relative: ClassVar[bool] = True
     #: Arm 2 base to tip: the turn φ6 carries the lift s5, which carries the slide s4.
     joint_names: ClassVar[tuple[str, ...]] = ("phi1", "phi2", "s3", "phi6", "s5", "s4")
     joint_types: ClassVar[tuple[str, ...]] = (
@@ -251,6 +252,7 @@ class DualRrrPppArm(Arm):
     """
 
     name: ClassVar[str] = "dual_rrr_ppp"
+    relative: ClassVar[bool] = True
     joint_names: ClassVar[tuple[str, ...]] = ("phi1", "phi2", "phi3", "s4", "s5", "s6")
     joint_types: ClassVar[tuple[str, ...]] = (REVOLUTE,) * 3 + (PRISMATIC,) * 3
     closed_form_labels: ClassVar[tuple[str, ...]] = ("phi2+", "phi2-")
@@ -325,6 +327,7 @@ class DualPprPrrArm(Arm):
     """
 
     name: ClassVar[str] = "dual_ppr_prr"
+    relative: ClassVar[bool] = True
     joint_names: ClassVar[tuple[str, ...]] = ("s1", "s2", "phi3", "s4", "phi5", "phi6")
     joint_types: ClassVar[tuple[str, ...]] = (
         (PRISMATIC,) * 2 + (REVOLUTE, PRISMATIC) + (REVOLUTE,) * 2

@@ -78,7 +78,7 @@ def milling_cell(spec: mujoco.MjSpec, arm: Arm, tree: ArmTree, *, base_pos=None,
     ``base_pos`` (and a turn about the vertical, ``base_quat``/``base_rpy``) puts its base
     on the cell's floor (the model's world stays the arm's base frame: the cell moves).
     """
-    if arm.target != "pose" or arm.dof != 6 or not tree.ee_body:
+    if arm.target != "pose" or arm.dof != 6 or arm.relative or not tree.ee_body:
         raise ValueError(f"the milling cell needs a six-DOF single arm, not {arm.name!r}")
     placed = base_pos is not None or base_quat is not None or base_rpy is not None
     cell = spec.worldbody

@@ -92,5 +92,5 @@ def sample_free_configurations(
 
 
 def require_pose_arm(arm: Arm, scene: str) -> None:
-    if arm.target != "pose" or arm.dof != 6 or arm.name.startswith("dual_"):
+    if arm.target != "pose" or arm.dof != 6 or arm.relative:
         raise ValueError(f"this task needs a six-DOF single arm, not {arm.name!r}")

@@ -32,7 +32,8 @@ class FileTask:
             return Task(start=arm.home.copy(), poses=self.poses, free_start=True)
         return Task(start=self.start.copy(), poses=self.poses)
 
-    def check_arm(self, arm: Arm, scene: str) -> None:
+    @staticmethod
+    def check_arm(arm: Arm, scene: str) -> None:
         if arm.target != "pose":
             raise ValueError(f"waypoint files give poses; {arm.name} is position-only")
 

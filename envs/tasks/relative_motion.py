@@ -14,7 +14,7 @@ MAX_ATTEMPTS = 50
 
 
 def _require_dual(arm: Arm, scene: str) -> None:
-    if not arm.name.startswith("dual_"):
+    if not arm.relative:
         raise ValueError(f"relative_motion needs a two-arm system, not {arm.name!r}")
 
 

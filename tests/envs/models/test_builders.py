@@ -153,9 +153,18 @@ def test_visual_and_collision_geoms_are_separate(arm_name):
     assert model.body("tool").id > 0
 
 
-def test_milling_cell_is_for_the_anthropomorphic_arm_only():
-    with pytest.raises(ValueError, match="anthropomorphic"):
-        build_model("cartesian", "milling_cell")
+@pytest.mark.parametrize("arm_name", ["cylindrical4", "rod_mechanism", "dual_rrp_rpp"])
+def test_milling_cell_refuses_what_is_not_a_six_dof_single_arm(arm_name):
+    # A two-arm system's fk is relative (one arm's link seen from the other's): no tool
+    # in the cell's world to carry.
+    with pytest.raises(ValueError, match="six-DOF single arm"):
+        build_model(arm_name, "milling_cell")
+
+
+@pytest.mark.parametrize("arm_name", ["cartesian", "kuka_kr6_r700"])
+def test_milling_cell_takes_other_six_dof_arms(arm_name):
+    model = build_model(arm_name, "milling_cell", base_pos=(-1.0, 0.0, 0.0))
+    assert model.nq == 6
 
 
 def test_unknown_names_are_rejected():

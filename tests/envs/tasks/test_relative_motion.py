@@ -15,7 +15,7 @@ from tests.envs.tasks.helpers import (
 )
 
 generator = TASKS["relative_motion"]
-DUALS = [name for name in ARM_NAMES if name.startswith("dual_")]
+DUALS = [name for name in ARM_NAMES if make_arm(name).relative]
 
 
 @pytest.mark.parametrize("arm_name", DUALS)
@@ -33,7 +33,7 @@ def test_deterministic_reachable_and_free(arm_name):
     assert nearest < np.abs(np.diff(arm.joint_limits, axis=1)).sum()
 
 
-@pytest.mark.parametrize("arm_name", [n for n in ARM_NAMES if not n.startswith("dual_")])
+@pytest.mark.parametrize("arm_name", [n for n in ARM_NAMES if not make_arm(n).relative])
 def test_needs_a_two_arm_system(arm_name):
     with pytest.raises(ValueError, match="two-arm"):
         generator.check_arm(make_arm(arm_name), "empty")

@@ -118,10 +118,15 @@ def test_the_papers_transfer_needs_the_anthropomorphic_arm(arm_name):
         TASKS["paper_transfer"].check_arm(make_arm(arm_name), "milling_cell")
 
 
+#: Not six-DOF single arms: four joints, a position-only mechanism, the two-arm systems.
+NOT_SIX_DOF_SINGLE = {"cylindrical4", "rod_mechanism", "dual_rrp_rpp", "dual_rrr_ppp",
+                      "dual_ppr_prr"}
+
+
 @pytest.mark.parametrize("arm_name", ARM_NAMES)
 def test_tool_changes_need_a_six_dof_single_arm(arm_name):
     arm = make_arm(arm_name)
-    if arm.dof == 6 and arm.target == "pose" and not arm_name.startswith("dual_"):
+    if arm_name not in NOT_SIX_DOF_SINGLE:
         TASKS["tool_changes"].check_arm(arm, "milling_cell")  # any such arm, placed in it
     else:
         with pytest.raises(ValueError, match="six-DOF single arm"):

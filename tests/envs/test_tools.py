@@ -1,0 +1,94 @@
+"""Tools (``envs/tools.py``): parsing, the TCP mapping, and the solid in the MuJoCo model."""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from envs.ik_branch_env import IKBranchEnv
+from envs.tools import Tool
+
+TORCH = {"shape": "cylinder", "size": [0.02, 0.3],
+         "offset": {"pos": [0.0, 0.01, 0.0], "rpy": [0.3, 0.0, 0.0]},
+         "tcp": {"pos": [0.0, 0.1, 0.28], "rpy": [0.3, 0.0, 0.0]}}
+
+
+@pytest.mark.parametrize(("spec", "match"), [
+    ({"shape": "sphere", "size": [1.0]}, "shape"),
+    ({"shape": "cylinder", "size": [0.02]}, "size must be 2"),
+    ({"shape": "box", "size": [0.1, 0.1, 0.0]}, "positive"),
+    ({"shape": "cylinder", "size": [0.02, 0.3], "colour": "red"}, "unknown keys"),
+    ({"shape": "cylinder", "size": [0.02, 0.3], "tcp": {"pos": [0, 0, 1], "quat": [1, 0, 0, 0.1]}},
+     "norm"),
+    ({"shape": "cylinder", "size": [0.02, 0.3], "tcp": {"quat": [1, 0, 0, 0], "rpy": [0, 0, 0]}},
+     "not both"),
+    ({"shape": "cylinder", "size": [0.02, math.nan]}, "finite"),
+    ({"shape": "mesh"}, "needs 'mesh'"),
+    ({"shape": "mesh", "mesh": "no/such/torch.stl"}, "no such file"),
+])
+def test_malformed_tools_are_refused(spec, match):
+    with pytest.raises(ValueError, match=match):
+        Tool.from_spec(spec)
+
+
+def test_rpy_and_quaternion_give_the_same_frame():
+    # A quarter turn about z, then a half turn about x: written both ways.
+    by_rpy = Tool.from_spec({"shape": "box", "size": [0.1, 0.1, 0.1],
+                             "tcp": {"rpy": [math.pi, 0.0, math.pi / 2]}}).tcp
+    h = math.sqrt(0.5)  # q = qz(90°)·qx(180°) = (h, 0, 0, h)·(0, 1, 0, 0)
+    by_quat = Tool.from_spec({"shape": "box", "size": [0.1, 0.1, 0.1],
+                              "tcp": {"quat": [0.0, h, h, 0.0]}}).tcp
+    expected = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+    np.testing.assert_allclose(by_rpy[:3, :3], expected, atol=1e-15)
+    np.testing.assert_allclose(by_quat[:3, :3], expected, atol=1e-15)
+
+
+def test_flange_poses_put_the_tcp_on_the_pose():
+    tool = Tool.from_spec(TORCH)
+    rng = np.random.default_rng(0)
+    env = IKBranchEnv(arm="kuka_kr6_r700", scene="empty", task="random")
+    poses = env.arm.fk(rng.uniform(*env.arm.joint_limits.T, size=(50, 6)))
+    np.testing.assert_allclose(tool.tcp_poses(tool.flange_poses(poses)), poses, atol=1e-14)
+
+
+@pytest.mark.parametrize("arm_name", ["kuka_kr6_r700", "ur5e", "anthropomorphic"])
+def test_the_model_carries_the_tool_at_the_fk_frame(arm_name):
+    env = IKBranchEnv(arm=arm_name, scene="empty", task="random", tool=TORCH)
+    tool, model = env.tool, env.model
+    data = mujoco.MjData(model)
+    tcp = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "tcp")
+    solid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "tool")
+    assert model.geom_contype[solid] == 1
+    rng = np.random.default_rng(1)
+    for q in rng.uniform(*env.arm.joint_limits.T, size=(20, env.arm.dof)):
+        data.qpos[: env.arm.dof] = q
+        mujoco.mj_kinematics(model, data)
+        flange = env.arm.fk(q)
+        expected = tool.tcp_poses(flange)
+        np.testing.assert_allclose(data.site_xpos[tcp], expected[:3, 3], atol=1e-9)
+        np.testing.assert_allclose(data.site_xmat[tcp].reshape(3, 3), expected[:3, :3],
+                                   atol=1e-9)
+        # The cylinder runs 0.3 m along the offset frame's z from the offset's origin.
+        axis = flange[:3, :3] @ tool.offset[:3, 2]
+        centre = flange[:3, :3] @ tool.offset[:3, 3] + flange[:3, 3] + 0.15 * axis
+        np.testing.assert_allclose(data.geom_xpos[solid], centre, atol=1e-9)
+        # (fromto may point the geom's z either way along the axis: a cylinder is even.)
+        np.testing.assert_allclose(abs(data.geom_xmat[solid].reshape(3, 3)[:, 2] @ axis), 1.0,
+                                   atol=1e-9)
+
+
+def test_a_tool_collides_where_the_bare_arm_does_not():
+    # Pointing the flange at the floor from just above it: only the tool reaches it.
+    bare = IKBranchEnv(arm="kuka_kr6_r700", scene="empty", task="random")
+    armed = IKBranchEnv(arm="kuka_kr6_r700", scene="empty", task="random",
+                        tool={"shape": "cylinder", "size": [0.02, 0.5]})
+    down = np.array([[1.0, 0.0, 0.0, 0.5], [0.0, -1.0, 0.0, 0.0], [0.0, 0.0, -1.0, 0.15],
+                     [0.0, 0.0, 0.0, 1.0]])
+    q, valid = bare.arm.ik(down)
+    assert valid.any()
+    q = q[valid]
+    assert not bare.checker.collides(q).any()
+    assert armed.checker.collides(q).all()

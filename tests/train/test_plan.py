@@ -1,0 +1,445 @@
+"""``ikbranch plan``: round trip of generated tasks, replay of written plans, bad inputs,
+the examples end to end (rendering included, for real)."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import shlex
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import imageio.v3 as iio
+import numpy as np
+import pytest
+
+from agents import make_baseline
+from envs.ik_branch_env import IKBranchEnv
+from envs.kinematics import make_arm
+from envs.kinematics.paper_example import (
+    PRINTED_MIN_TRAVEL_DEG,
+    corrected_table_deg,
+    example_poses,
+)
+from envs.render import arm_geoms
+from envs.tasks.tool_transfer import _cell_poses
+from envs.tasks.waypoint_file import read_waypoints, write_waypoints
+from envs.tools import Tool
+from train import cli
+from train import plan as plan_module
+from train.plan import EXIT_INPUT, EXIT_INTERNAL, EXIT_OK, EXIT_UNSAFE, main, play
+
+ROOT = Path(__file__).resolve().parents[2]
+EXAMPLES = ROOT / "examples"
+
+#: The commands of examples/README.md, exactly (run from a copy of the repository's
+#: examples/ folder, so CoACD's cache and the outputs land in a temporary folder).
+PAPER = ("ikbranch plan --arm anthropomorphic --waypoints examples/paper_worked_example.csv "
+         "--out plan.csv")
+WELDING = ("ikbranch plan --arm abb_irb2400 --waypoints examples/welding_seam.csv "
+           "--scene examples/welding_cell.xml --tool examples/welding_torch.json "
+           "--planner dp_oracle --planner paper_rule --out weld.csv --json weld.json")
+MILLING = ("ikbranch plan --arm anthropomorphic --waypoints examples/milling_tool_change.csv "
+           "--scene examples/milling_cell.xml --tool examples/milling_tool.json "
+           "--planner dp_oracle --planner paper_rule --planner receding_dp "
+           "--out tool_change.csv --json tool_change.json")
+
+
+def args_of(command: str) -> list[str]:
+    words = shlex.split(command)
+    assert words[:2] == ["ikbranch", "plan"]
+    return words[2:]
+
+
+@pytest.fixture
+def cell(tmp_path, monkeypatch):
+    """A temporary working directory holding a copy of examples/ (no CoACD cache)."""
+    shutil.copytree(EXAMPLES, tmp_path / "examples", ignore=shutil.ignore_patterns("*.coacd"))
+    monkeypatch.chdir(tmp_path)
+    return tmp_path
+
+
+def rows_of(path) -> list[dict[str, str]]:
+    with open(path, newline="", encoding="utf-8") as stream:
+        return list(csv.DictReader(stream))
+
+
+def replay(csv_path, json_path) -> None:
+    """Step a fresh env of the plan's own arguments with the CSV's branches: every row's
+    joint values are ``env.q`` after its step (the repr round trip, exactly), the
+    rewards sum to the reported return exactly (same env, same moves, same order of
+    summation), the episode succeeds."""
+    record = json.loads(Path(json_path).read_text())
+    env = IKBranchEnv(**record["inputs"]["env_kwargs"])
+    env.reset(seed=0)
+    names = record["inputs"]["joint_names"]
+    rows = rows_of(csv_path)
+    assert len(rows) == len(record["waypoints"])
+    total, cumulative = 0.0, 0.0
+    info = {}
+    for i, row in enumerate(rows):
+        assert int(row["waypoint"]) == i
+        _, reward, terminated, _, info = env.step(int(row["branch"]))
+        total += float(reward)
+        cumulative += info["travel"]
+        assert [row[name] for name in names] == [repr(float(v)) for v in env.q]
+        assert [float(row[name]) for name in names] == env.q.tolist()
+        assert [float(row[f"{name}_deg"]) for name in names] == np.degrees(env.q).tolist()
+        assert row["label"] == env.arm.branch_labels[int(row["branch"])]
+        assert float(row["travel_rad"]) == info["travel"]
+        assert float(row["time_s"]) == info["time"]
+        assert row["collision"] == str(int(info["collision"]))
+        assert float(row["cumulative_travel_rad"]) == cumulative
+        assert terminated == (i == len(rows) - 1)
+    assert info["is_success"]
+    reported = record["summary"][record["chosen"]]["return"]
+    assert total == reported
+    steps = record["planners"][record["chosen"]]["steps"]
+    assert sum(step["reward"] for step in steps) == reported  # the JSON's steps agree
+
+
+# ------------------------------------------------------------------------ round trip
+@pytest.mark.parametrize("arm", ["anthropomorphic", "kuka_kr6_r700"])
+def test_generated_task_written_and_read_back_is_the_same_episode(tmp_path, arm):
+    generated = IKBranchEnv(arm=arm, scene="empty", task="random", n_waypoints=4)
+    generated.reset(seed=11)
+    task = generated.task
+    path = write_waypoints(tmp_path / "task.csv", task.poses, format="matrix")
+    read = IKBranchEnv(arm=arm, scene="empty", task="file", task_file=str(path),
+                       task_start=task.start.tolist())
+    read.reset(seed=0)
+    assert read.task.free_start is False
+    assert np.array_equal(read.task.start, task.start)
+    assert np.array_equal(read.task.poses, task.poses)
+    assert np.array_equal(read.candidates, generated.candidates, equal_nan=True)
+    assert np.array_equal(read.valid, generated.valid)
+    assert np.array_equal(read.endpoint_collision, generated.endpoint_collision)
+    for waypoint in range(task.n_waypoints):  # every move's price, collision checks included
+        for mine, theirs in zip(read.edge_rewards(waypoint), generated.edge_rewards(waypoint),
+                                strict=True):
+            assert np.array_equal(mine, theirs, equal_nan=True)
+    # The same action sequences give the same rewards and infos, exactly: the optimum and
+    # a random valid sequence.
+    oracle = make_baseline("dp_oracle", generated)
+    oracle.predict(np.zeros(generated.observation_space.shape), episode_start=np.array([True]))
+    rng = np.random.default_rng(3)
+    sequences = [oracle.plan, [int(rng.choice(np.flatnonzero(row))) for row in read.valid]]
+    for sequence in sequences:
+        episodes = []
+        for env in (generated, read):
+            env.reset(seed=11)  # the generated env draws its task again; the file's is fixed
+            assert np.array_equal(env.task.poses, task.poses)
+            episode = []
+            for branch in sequence:
+                obs, reward, terminated, _, info = env.step(branch)
+                episode.append((obs.tolist(), reward, info))
+                if terminated:
+                    break
+            episodes.append(episode)
+        assert episodes[0] == episodes[1]
+
+
+# ------------------------------------------------------------------------- examples
+def test_paper_example_through_the_console_command(cell):
+    # The README's command through ``python -m train.cli`` (the console script's target).
+    result = subprocess.run([sys.executable, "-m", "train.cli", *shlex.split(PAPER)[1:]],
+                            capture_output=True, text=True, cwd=cell,
+                            env={**os.environ, "MUJOCO_GL": "egl"}, timeout=300)
+    assert result.returncode == EXIT_OK, result.stderr
+    rows = rows_of(cell / "plan.csv")
+    assert [(r["name"], int(r["branch"])) for r in rows] == [
+        ("position 1 (rack)", 0), ("position 2 (spindle)", 0)]  # 1.1 -> 2.1
+    assert [r["label"] for r in rows] == ["front/elbow-up/wrist+"] * 2
+    total = float(rows[-1]["cumulative_travel_deg"])
+    assert round(total, 2) == PRINTED_MIN_TRAVEL_DEG == 275.15
+    assert float(rows[0]["travel_rad"]) == 0.0  # the free start: the first branch costs nothing
+    assert "dp_oracle" in result.stdout and "275.15" in result.stdout
+    # The rows are branch 0 of the paper's own poses, exactly (the four-point file gives
+    # example_poses() bit for bit), and the paper's table rows 1.1 and 2.1 to its printed
+    # precision (tests/envs/kinematics/test_worked_example.py's tolerance).
+    solutions, _ = make_arm("anthropomorphic").ik(example_poses())
+    table = corrected_table_deg()
+    for position, (row, printed) in enumerate(zip(rows, ("1.1", "2.1"), strict=True)):
+        assert [float(row[f"phi{j}"]) for j in range(1, 7)] == solutions[position, 0].tolist()
+        degrees = [float(row[f"phi{j}_deg"]) for j in range(1, 7)]
+        assert np.abs(np.array(degrees) - table[printed]).max() < 0.02
+
+
+def test_paper_example_gif_is_rendered_and_annotated(cell, capsys):
+    out = cell / "plan.gif"
+    assert main([*args_of(PAPER), "--json", "plan.json", "--gif", str(out),
+                 "--gif-size", "160", "120"]) == EXIT_OK
+    frames = iio.imread(out, index=None)
+    assert frames.ndim == 4 and frames.shape[1:] == (120, 160, 3)
+    assert len(frames) >= 5  # the two waypoints and the move between them
+    assert frames.std() > 10.0
+    assert not np.array_equal(frames[0], frames[-1])  # the arm moved
+    # Each frame's caption band: dark, with light text, and the text changes as the
+    # travel grows (first frame "travel 0.0", last "travel 275.1").
+    band = frames[:, :24].astype(int)
+    assert (band.max(axis=-1) > 200).any(axis=(1, 2)).all()
+    assert not np.array_equal(band[0], band[-1])
+    body = frames[:, 50:].astype(int)  # below the captions: the arm moved
+    assert (np.abs(body[0] - body[-1]).max(axis=-1) > 30).mean() > 0.01
+
+
+def test_render_frames_the_arm_not_the_cell():
+    env = IKBranchEnv(arm="anthropomorphic", scene="file",
+                      scene_file=str(EXAMPLES / "milling_cell.xml"),
+                      tool=json.loads((EXAMPLES / "milling_tool.json").read_text()),
+                      task="file", task_file=str(EXAMPLES / "milling_tool_change.csv"))
+    model = env.model
+    mask = arm_geoms(model)
+    names = [model.geom(g).name for g in range(model.ngeom)]
+    chosen = {name for name, keep in zip(names, mask, strict=True) if keep}
+    assert {"tool", "tool_vis", "plinth", "column"} <= chosen
+    assert not any(name.startswith("scene/") or name == "floor" for name in chosen)
+
+
+def test_welding_example_plans_through_the_decomposed_fixture(cell, capsys):
+    assert main(args_of(WELDING)) == EXIT_OK
+    record = json.loads((cell / "weld.json").read_text())
+    summary = record["summary"]
+    assert summary["dp_oracle"]["success"] and summary["dp_oracle"]["collisions"] == 0
+    assert summary["dp_oracle"]["waypoints_reached"] == 9
+    (jig,) = record["inputs"]["scene"]["meshes"]
+    assert jig["name"] == "jig" and not jig["convex"] and jig["parts"] >= 3
+    replay(cell / "weld.csv", cell / "weld.json")
+    # Frames: the plan's TCP, mapped into the cell by the scene's arm_base site, stands at
+    # the file's poses (cell frame): base · fk(q) · tcp = pose.
+    base = np.array(record["inputs"]["scene"]["base_pose"])
+    tcp = np.array(record["inputs"]["tool"]["tcp"])
+    file_poses = read_waypoints(cell / "examples" / "welding_seam.csv").poses
+    arm = make_arm("abb_irb2400")
+    for row, pose in zip(rows_of(cell / "weld.csv"), file_poses, strict=True):
+        q = [float(row[name]) for name in arm.joint_names]
+        assert np.allclose(base @ arm.fk(np.array(q)) @ tcp, pose, atol=1e-9)
+    # The torch inclined 15° along the seam (its TCP z into the work, tilted towards +y).
+    axis = file_poses[1][:3, 2]
+    assert math.isclose(math.degrees(math.acos(-axis[2])), 15.0, abs_tol=1e-6)
+    # With MuJoCo's convex hull the jig's channel is solid: no plan reaches the seam.
+    capsys.readouterr()
+    hull = [*args_of(WELDING), "--scene-options", '{"decompose": "never"}',
+            "--out", "hull.csv", "--json", "hull.json"]
+    assert main(hull) == EXIT_UNSAFE
+    err = capsys.readouterr().err
+    assert "not safe to run" in err and "collides" in err
+    assert "even dp_oracle finds no collision-free plan" in err
+    hulled = json.loads((cell / "hull.json").read_text())["summary"]["dp_oracle"]
+    assert not hulled["success"] and hulled["collisions"] >= 1
+
+
+def test_milling_example_equals_the_builtin_cell_and_tool(cell, capsys):
+    assert cli.main(shlex.split(MILLING)[1:]) == EXIT_OK
+    printed = capsys.readouterr().out
+    assert "receding_dp" in printed and "paper_rule" in printed
+    record = json.loads((cell / "tool_change.json").read_text())
+    rows = rows_of(cell / "tool_change.csv")
+    assert [r["name"] for r in rows] == ["above slot 1", "slot 1 (pick)", "above slot 1",
+                                         "spindle (insert)"]
+    replay(cell / "tool_change.csv", cell / "tool_change.json")
+    # The waypoints are the tool_changes task's poses of slot 1 (grip 0), to rounding.
+    slots, above, spindle = _cell_poses()
+    expected = np.stack([above[0, 1], slots[0, 1], above[0, 1], spindle[0]])
+    poses = read_waypoints(cell / "examples" / "milling_tool_change.csv").poses
+    assert np.allclose(poses, expected, atol=1e-14)
+    # The scene file and the JSON tool price every move exactly as the built-in milling
+    # cell with its built-in tool.
+    file_env = IKBranchEnv(**record["inputs"]["env_kwargs"])
+    builtin = IKBranchEnv(arm="anthropomorphic", scene="milling_cell", task="file",
+                          task_file="examples/milling_tool_change.csv")
+    for env in (file_env, builtin):
+        env.reset(seed=0)
+    assert np.array_equal(file_env.candidates, builtin.candidates, equal_nan=True)
+    for waypoint in range(len(rows)):
+        for mine, theirs in zip(file_env.edge_rewards(waypoint), builtin.edge_rewards(waypoint),
+                                strict=True):
+            assert np.array_equal(mine, theirs, equal_nan=True)
+    oracle = make_baseline("dp_oracle", builtin)
+    oracle.predict(np.zeros(builtin.observation_space.shape), episode_start=np.array([True]))
+    assert [int(r["branch"]) for r in rows] == oracle.plan
+    assert oracle.planned_return == record["summary"]["dp_oracle"]["return"]
+    # receding_dp's horizon of three starts the free start in the wrong branch.
+    assert record["summary"]["receding_dp"]["gap"] > 0.5
+
+
+# ------------------------------------------------------------------------ start option
+def test_start_semantics(cell, capsys):
+    base = args_of(PAPER)
+    assert main([*base, "--start", "home", "--out", "home.csv", "--json", "home.json"]) == 0
+    home = json.loads((cell / "home.json").read_text())
+    env = IKBranchEnv(arm="anthropomorphic")
+    assert home["inputs"]["start"] == {"free": False, "q": env.arm.home.tolist()}
+    first = rows_of(cell / "home.csv")[0]
+    q0 = np.array([float(first[f"phi{j}"]) for j in range(1, 7)])
+    assert float(first["travel_rad"]) == pytest.approx(np.abs(q0 - env.arm.home).sum(),
+                                                       rel=1e-12)
+    # The same start in degrees, and a value with a leading minus sign.
+    degrees = ",".join(repr(math.degrees(v)) for v in env.arm.home)
+    assert main([*base, "--start", degrees, "--start-degrees", "--out", "deg.csv"]) == 0
+    assert [r["branch"] for r in rows_of(cell / "deg.csv")] == [
+        r["branch"] for r in rows_of(cell / "home.csv")]
+    start = "-0.1,0.5,-0.5,0,0.8,0"
+    assert main([*base, "--start", start, "--out", "neg.csv", "--json", "neg.json"]) == 0
+    assert json.loads((cell / "neg.json").read_text())["inputs"]["start"]["q"] == [
+        -0.1, 0.5, -0.5, 0.0, 0.8, 0.0]
+
+
+# ------------------------------------------------------------------------- bad input
+#: (extra arguments, expected fragment of the message). Files are made by ``bad_files``.
+BAD_INPUTS = [
+    (["--waypoints", "absent.csv"], "absent.csv: no such file"),
+    (["--waypoints", "misspelt.csv"], "misspelt.csv: line 1: unknown column 'nmae'"),
+    (["--waypoints", "unnormalised.csv"], "unnormalised.csv: line 2: quaternion norm"),
+    (["--waypoints", "unreachable.csv"],
+     "2 of 3 waypoints cannot be reached by anthropomorphic:\n"
+     "  unreachable.csv: line 3: out of reach (no branch exists)\n"
+     "  unreachable.csv: line 4: out of reach (no branch exists)"),
+    (["--arm-params", '{"joint_limits": [[-0.1, 0.1], [-3, 3], [-2.9, 2.9], [-3, 3], '
+      '[-2.3, 2.3], [-3, 3]]}'],
+     "paper.csv: line 2: every branch lies outside the joint limits"),
+    (["--points-abc", "50", "350", "50"], "a is given both as a column and as an option"),
+    (["--tool", "{bad json"], "--tool: not valid JSON"),
+    (["--tool", '{"shape": "cone"}'], "--tool: tool shape must be one of"),
+    (["--tool", '{"shape": "cylinder", "size": [0.02]}'], "tool size must be 2"),
+    (["--tool", "absent.json"], "--tool absent.json: no such file"),
+    (["--tool", "broken_tool.json"], "--tool broken_tool.json: line 1 column"),
+    (["--start", "1,2"], "anthropomorphic has 6 joints"),
+    (["--start", "0,0,0,0,3,0"], "phi5 = 3.0 rad (171.89°) outside"),
+    (["--start", "0,x,0,0,0,0"], "'x' is not a number"),
+    (["--start", "0,nan,0,0,0,0"], "is not a finite number"),
+    (["--start", "free", "--start-degrees"], "--start-degrees needs joint values"),
+    (["--planner", "magic"], "--planner 'magic': unknown planner"),
+    (["--planner", "paper_rule:3"], "paper_rule takes no argument"),
+    (["--planner", "receding_dp:0"], "horizon (an integer >= 1)"),
+    (["--planner", "absent.zip"], "--planner absent.zip: no such model file"),
+    (["--arm", "scara"], "unknown arm 'scara'"),
+    (["--arm", "rod_mechanism"], "waypoint files give poses; rod_mechanism is position-only"),
+    (["--arm-params", "[1]"], "--arm-params must be a JSON object"),
+    (["--arm-params", '{"reach": 2}'], "bad parameters for arm 'anthropomorphic'"),
+    (["--scene", "absent.xml"], "absent.xml: no such file"),
+    (["--scene", "moving.xml"], "obstacles must be static"),
+    (["--scene-options", "{}"], "--scene-options need --scene"),
+    (["--scene", "empty_cell.xml", "--scene-options", '{"base_yaw": 1}'],
+     "--scene-options: unknown keys ['base_yaw']"),
+    (["--scene", "empty_cell.xml", "--scene-options", '{"base_quat": [2, 0, 0, 0]}'],
+     "norm"),
+    (["--env-kwargs", '{"lookahead": -1}'], "lookahead must be an integer >= 0"),
+    (["--env-kwargs", '{"tool": null}'], "--env-kwargs may not set tool"),
+    (["--env-kwargs", '{"lookahed": 1}'], "--env-kwargs: unknown arguments ['lookahed']"),
+    (["--tool", '{"shape": "mesh", "mesh": 5}'], "--tool: mesh must be the path of an STL/OBJ"),
+    (["--resolution", "0"], "--resolution must be a positive length"),
+    (["--out", "plan.txt"], "--out plan.txt: the file name must end in .csv"),
+    (["--out", "absent/plan.csv"], "folder absent does not exist"),
+    (["--out", "paper.csv"], "--out paper.csv would overwrite an input file"),
+    (["--json", "plan.csv"], "--json plan.csv: the file name must end in .json"),
+    (["--gif-size", "8", "8"], "--gif-size must be at least 16 16"),
+]
+
+
+@pytest.fixture
+def bad_files(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    shutil.copy(EXAMPLES / "paper_worked_example.csv", tmp_path / "paper.csv")
+    header = "name,x,y,z,qw,qx,qy,qz\n"
+    (tmp_path / "misspelt.csv").write_text("nmae,x,y,z,qw,qx,qy,qz\na,0.5,1.2,0.8,1,0,0,0\n")
+    (tmp_path / "unnormalised.csv").write_text(header + "a,0.5,1.2,0.8,1,0.1,0,0\n")
+    (tmp_path / "unreachable.csv").write_text(
+        header + "near,0.5,1.2,0.8,1,0,0,0\nfar,5,0,0,1,0,0,0\nhigh,0,0,9,1,0,0,0\n")
+    (tmp_path / "broken_tool.json").write_text('{"shape": cylinder}')
+    (tmp_path / "moving.xml").write_text(
+        '<mujoco><worldbody><body name="cart"><joint type="slide"/>'
+        '<geom type="box" size="0.1 0.1 0.1"/></body></worldbody></mujoco>')
+    (tmp_path / "empty_cell.xml").write_text(
+        '<mujoco><worldbody><geom type="box" pos="3 3 0.1" size="0.1 0.1 0.1"/>'
+        '</worldbody></mujoco>')
+    return tmp_path
+
+
+def _listing(folder: Path) -> set[str]:
+    return {str(p.relative_to(folder)) for p in folder.rglob("*")}
+
+
+@pytest.mark.parametrize(("extra", "fragment"), BAD_INPUTS,
+                         ids=[f"{i:02d}" for i in range(len(BAD_INPUTS))])
+def test_bad_input_is_a_clear_message_and_writes_nothing(bad_files, capsys, extra, fragment):
+    argv = ["--arm", "anthropomorphic", "--waypoints", "paper.csv", "--out", "plan.csv",
+            "--json", "plan.json", "--gif", "plan.gif", *extra]
+    before = _listing(bad_files)
+    assert main(argv) == EXIT_INPUT
+    captured = capsys.readouterr()
+    assert captured.err.startswith("ikbranch plan: error: ")
+    assert fragment in captured.err
+    assert "Traceback" not in captured.err and captured.out == ""
+    assert _listing(bad_files) == before  # no output, no temporary file
+
+
+def test_argparse_errors_exit_2(bad_files, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--arm", "anthropomorphic", "--waypoints", "paper.csv"])  # no --out
+    assert exit_info.value.code == EXIT_INPUT
+    assert "--out" in capsys.readouterr().err
+
+
+def test_a_failed_run_leaves_existing_outputs_alone(bad_files, capsys):
+    (bad_files / "plan.csv").write_text("the previous plan\n")
+    assert main(["--arm", "anthropomorphic", "--waypoints", "unreachable.csv",
+                 "--out", "plan.csv"]) == EXIT_INPUT
+    assert (bad_files / "plan.csv").read_text() == "the previous plan\n"
+
+
+def test_an_internal_failure_is_status_1_and_writes_nothing(bad_files, capsys, monkeypatch):
+    def broken(*args, **kwargs):
+        raise RuntimeError("renderer exploded")
+
+    monkeypatch.setattr(plan_module, "render_frames", broken)
+    before = _listing(bad_files)
+    assert main(["--arm", "anthropomorphic", "--waypoints", "paper.csv", "--out", "plan.csv",
+                 "--json", "plan.json", "--gif", "plan.gif"]) == EXIT_INTERNAL
+    err = capsys.readouterr().err
+    assert "internal error" in err and "renderer exploded" in err
+    assert _listing(bad_files) == before
+
+
+def test_play_records_what_the_env_did():
+    env = IKBranchEnv(arm="anthropomorphic", scene="empty", task="file",
+                      task_file=str(EXAMPLES / "paper_worked_example.csv"))
+    steps, total, success, _ = play(make_baseline("paper_rule", env), env)
+    assert success and [s.branch for s in steps] == [0, 0]
+    assert total == sum(s.reward for s in steps)
+    assert np.array_equal(steps[-1].q, env.q)
+    assert set(steps[0].terms) == {"reward_travel", "reward_time", "reward_collision",
+                                   "reward_invalid", "reward_unfinished"}
+
+
+def test_tool_file_mesh_paths_are_relative_to_the_file(tmp_path):
+    (tmp_path / "tools").mkdir()
+    (tmp_path / "tools" / "torch.json").write_text(
+        '{"shape": "mesh", "mesh": "torch.stl"}')
+    spec, path = plan_module.parse_tool(str(tmp_path / "tools" / "torch.json"))
+    assert spec["mesh"] == str(tmp_path / "tools" / "torch.stl")
+    assert path == tmp_path / "tools" / "torch.json"
+    with pytest.raises(ValueError, match="no such file"):
+        Tool.from_spec(spec)
+
+
+def test_a_trained_model_plans_and_a_mismatched_one_is_bad_input(cell, capsys):
+    model = str(ROOT / "models" / "ToolTransfer-v0" / "maskable_ppo.zip")
+    command = args_of(MILLING)
+    command[command.index("--planner") + 1] = model  # the model first, instead of the oracle
+    assert main([*command, "--env-kwargs", '{"observation": "ladder"}']) == EXIT_OK
+    record = json.loads((cell / "tool_change.json").read_text())
+    assert record["chosen"] == model
+    summary = record["summary"]
+    assert summary[model]["success"] and summary[model]["decision_ms"] > 0
+    assert list(summary) == ["dp_oracle", model, "paper_rule", "receding_dp"]
+    replay(cell / "tool_change.csv", cell / "tool_change.json")
+    capsys.readouterr()
+    assert main([*command, "--out", "other.csv", "--json", "other.json"]) == EXIT_INPUT
+    err = capsys.readouterr().err
+    assert "trained on observations of shape" in err
+    assert not (cell / "other.csv").exists() and not (cell / "other.json").exists()
