@@ -7,7 +7,9 @@ from __future__ import annotations
 
 import os
 
-# Offscreen rendering needs its GL backend chosen before mujoco is first imported.
+# The one place MUJOCO_GL is chosen: mujoco picks its GL backend when first imported, and
+# every module that imports it (envs.models, envs.render, the env) is inside this package,
+# so Python runs this first. Headless rendering (envs.render) needs EGL or OSMesa.
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 import gymnasium as gym

@@ -12,16 +12,13 @@ animated GIF. ``--milling-path I J`` draws the milling cell's transfer from bran
 position 1 to branch J at position 2 (``arm.branch_labels`` order; 0 0 is the paper's
 1.1 → 2.1).
 
-Rendering is headless: ``MUJOCO_GL`` defaults to ``egl`` (set before mujoco is imported);
+Rendering is headless: ``MUJOCO_GL`` defaults to ``egl`` (set by ``envs/__init__.py``,
+which runs before this module and before mujoco is imported);
 where EGL is unavailable, ``MUJOCO_GL=osmesa`` (Mesa's software renderer, slower) works
 with the same code.
 """
 
 from __future__ import annotations
-
-import os
-
-os.environ.setdefault("MUJOCO_GL", "egl")
 
 import argparse
 import sys

@@ -4,15 +4,12 @@
     build_arm_model(arm, scene="empty", *, tool=None, **scene_kwargs)
     CollisionChecker(model, dof=arm.dof, resolution=0.01)
 
-See ``docs/models.md``. Only this package, the collision checker and the env import mujoco.
+See ``docs/models.md``. The kinematics (``envs.kinematics``) never import mujoco; this
+package, the env, the move pricer and the renderer do. ``MUJOCO_GL`` is chosen once, in
+``envs/__init__.py``, which Python runs before any of them.
 """
 
 from __future__ import annotations
-
-import os
-
-# Offscreen rendering needs a GL backend chosen before mujoco is first imported.
-os.environ.setdefault("MUJOCO_GL", "egl")
 
 from . import builders_dual, builders_industrial, builders_rod  # noqa: F401  (register builders)
 from .builders import TREE_BUILDERS, ArmTree, register_tree_builder
