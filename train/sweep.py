@@ -49,6 +49,14 @@ def baselines_path(root: Path, env_id: str) -> Path:
     return Path(root) / "baselines" / f"{env_name(env_id)}.json"
 
 
+def done_path(spec: dict[str, Any]) -> Path:
+    """The file whose existence marks ``spec``'s trial finished (written last, atomically)."""
+    root, env_id = Path(spec["root"]), spec["env_id"]
+    if spec["algo"] == BASELINES_TRIAL:
+        return baselines_path(root, env_id)
+    return run_dir(root, env_id, spec["algo"], int(spec["seed"])) / "evaluation.json"
+
+
 def _write_json(path: Path, record: dict) -> None:
     """Atomically: a reader (or a resumed sweep) never sees half a file."""
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -69,7 +77,7 @@ def run_trial(spec: dict[str, Any]) -> dict[str, Any]:
     root, env_id, algo = Path(spec["root"]), spec["env_id"], spec["algo"]
     episodes, env_kwargs = spec["episodes"], held_out(env_id, spec.get("env_kwargs"))
     if algo == BASELINES_TRIAL:
-        target = baselines_path(root, env_id)
+        target = done_path(spec)
         if target.exists():
             return json.loads(target.read_text())
         start = time.perf_counter()
@@ -82,7 +90,7 @@ def run_trial(spec: dict[str, Any]) -> dict[str, Any]:
         return record
     seed = int(spec["seed"])
     directory = run_dir(root, env_id, algo, seed)
-    done = directory / "evaluation.json"
+    done = done_path(spec)
     if done.exists():
         return json.loads(done.read_text())
     start = time.perf_counter()
@@ -203,10 +211,12 @@ def main(argv: list[str] | None = None) -> int:
                    args.episodes, args.timesteps, args.hyperparams)
     results = sweep(specs, address=args.address, cpus_per_trial=args.cpus_per_trial,
                     max_failures=args.max_failures)
-    failed = [r for r in results if r.error]
-    print(f"{len(results) - len(failed)} of {len(results)} trials done; run directories "
-          f"under {args.root / 'runs'}")
-    return 1 if failed else 0
+    # Counted on disk: an interrupted sweep's unfinished trials need not report an error.
+    finished = sum(done_path(spec).exists() for spec in specs)
+    errors = sum(1 for r in results if r.error)
+    print(f"{finished} of {len(specs)} trials finished ({errors} ended in an error); run "
+          f"directories under {args.root / 'runs'}; rerun the same command to resume")
+    return 0 if finished == len(specs) else 1
 
 
 if __name__ == "__main__":

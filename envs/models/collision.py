@@ -82,6 +82,7 @@ from __future__ import annotations
 
 import copy
 import itertools
+import math
 from dataclasses import dataclass
 
 import mujoco
@@ -126,6 +127,20 @@ class PathResult:
     @property
     def pairs(self) -> tuple[tuple[str, str], ...]:
         return tuple(sorted({(c.geom1, c.geom2) for c in self.contacts}))
+
+    def __eq__(self, other: object) -> bool:
+        # Two free paths are equal although NaN != NaN (the dataclass default compares
+        # first_fraction with ==).
+        if not isinstance(other, PathResult):
+            return NotImplemented
+        same_fraction = self.first_fraction == other.first_fraction or (
+            math.isnan(self.first_fraction) and math.isnan(other.first_fraction))
+        return (same_fraction and self.collides == other.collides
+                and self.contacts == other.contacts and self.n_samples == other.n_samples)
+
+    def __hash__(self) -> int:
+        fraction = None if math.isnan(self.first_fraction) else self.first_fraction
+        return hash((self.collides, fraction, self.contacts, self.n_samples))
 
 
 def lever_arms(model: mujoco.MjModel) -> np.ndarray:

@@ -358,3 +358,13 @@ def test_advancing_loop_handles_a_tilted_plane():
         for name in (c.geom1, c.geom2)
     }
     assert "wall" in touched
+
+
+def test_free_path_results_compare_equal():
+    # first_fraction is NaN on a free path; two free results must still be equal.
+    from envs.models.collision import PathResult
+
+    free = [PathResult(False, float("nan"), (), 12) for _ in range(2)]
+    assert free[0] == free[1] and hash(free[0]) == hash(free[1])
+    assert free[0] != PathResult(False, float("nan"), (), 13)
+    assert PathResult(True, 0.5, (), 12) != PathResult(True, 0.25, (), 12)
