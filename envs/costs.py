@@ -1,8 +1,9 @@
-"""The cost of moving between two configurations: the env's reward terms, in one place.
+"""The cost of moving between two configurations: travel, time and their reward weights.
 
 Pure numpy: the environment, the analytic baselines and the DP oracle all price a
-transition with the same :class:`TransitionCost`, so an oracle's return is exactly what the
-env would pay.
+transition with the same :class:`TransitionCost` (``envs/moves.py`` turns it into the
+reward terms −travel_weight·travel and −time_weight·time), so an oracle's return is
+exactly what the env would pay.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ DEFAULT_PRISMATIC_SPEED = 0.5
 
 @dataclass(frozen=True, eq=False)
 class TransitionCost:
-    """Travel and time of the linear joint-space move q0 → q1, and the reward they give.
+    """Travel and time of the linear joint-space move q0 → q1, and their reward weights.
 
     travel = Σ_j w_j·s_j·|Δq_j|, with s_j = 1 for revolute joints and ``prismatic_scale``
     (rad per m) for prismatic ones, so travel is in rad-equivalents (the paper's Σ|Δφ|);
@@ -71,10 +72,6 @@ class TransitionCost:
     def time(self, q0, q1) -> np.ndarray:
         """(…,) move time with every joint at its speed limit, the slowest setting the pace."""
         return np.max(np.abs(np.asarray(q1) - np.asarray(q0)) / self.speeds, axis=-1)
-
-    def motion_reward(self, q0, q1) -> tuple[np.ndarray, np.ndarray]:
-        """The travel and time reward terms, −travel_weight·travel and −time_weight·time."""
-        return -self.travel_weight * self.travel(q0, q1), -self.time_weight * self.time(q0, q1)
 
 
 def _non_negative(value, name: str) -> float:

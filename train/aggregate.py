@@ -90,6 +90,18 @@ def _curves(root: Path, env_id: str, algo: str, seeds: list[int]) -> dict[str, A
             "low": [e[1] for e in estimates], "high": [e[2] for e in estimates]}
 
 
+def probability_of_improvement(scores_x: np.ndarray, scores_y: np.ndarray) -> float:
+    """rliable's ``metrics.probability_of_improvement`` (P(X_m > Y_m), ties counting
+    half, averaged over tasks m), vectorised: rliable calls scipy's Mann-Whitney U once
+    per task, about 1 ms each, which inside a 2,000-sample bootstrap over 200 tasks took
+    minutes per policy pair. Mann-Whitney's U is exactly the count of pairs x > y plus
+    half the ties, so the values are the same (tested equal)."""
+    greater = (scores_x[:, None, :] > scores_y[None, :, :]).sum(axis=(0, 1))
+    ties = (scores_x[:, None, :] == scores_y[None, :, :]).sum(axis=(0, 1))
+    per_task = (greater + 0.5 * ties) / (scores_x.shape[0] * scores_y.shape[0])
+    return float(np.mean(per_task))
+
+
 def _iqm(x: np.ndarray) -> float:
     from rliable import metrics
 
@@ -145,7 +157,7 @@ def summarise(root: Path, env_id: str, entry: dict[str, Any]) -> dict[str, Any]:
             continue
         row["improvement"] = {
             rival: _estimate({"x,y": (runs[algo]["score"], runs[rival]["score"])},
-                             metrics.probability_of_improvement)["x,y"]
+                             probability_of_improvement)["x,y"]
             for rival in RIVALS if "score" in runs[rival]
         }
         row["learning_curve"] = _curves(root, env_id, algo, seeds[algo])

@@ -18,15 +18,19 @@ import sys
 import time
 from pathlib import Path
 
+from agents import BASELINES
+from agents.evaluation import ORACLE, evaluate
+from envs.seeds import TEST_SEED
 from train.hyperparams import ALGORITHMS
 from train.training import RunConfig, train
 
 ROOT = Path(__file__).resolve().parent.parent
 MODELS, RESULTS = ROOT / "models", ROOT / "docs" / "results"
-BASELINES = ("paper_rule", "paper_pair_rule", "receding_dp", "random", "fixed")
-#: Published evaluations: these seeds are disjoint from training (0, 1) and from the
-#: training-time held-out evaluation (1,000,000 + …).
-EVAL_SEED, EVAL_EPISODES = 3_000_000, 50
+#: Every baseline beside the trained models; ``evaluate`` runs the oracle first anyway.
+COMPARED_BASELINES = tuple(name for name in BASELINES if name != ORACLE)
+#: Published evaluations play the tasks of seeds TEST_SEED, TEST_SEED + 1, … (envs.seeds:
+#: no training run draws them).
+EVAL_EPISODES = 50
 METRICS = (("success", "success_rate", "{:.0%}"), ("return", "mean_return", "{:.2f}"),
            ("travel °", "mean_travel_deg", "{:.0f}"), ("time s", "mean_time", "{:.2f}"),
            ("collisions", "collision_rate", "{:.0%}"), ("invalid", "invalid_rate", "{:.0%}"),
@@ -43,10 +47,9 @@ def model_path(env_id: str, algo: str) -> Path:
 
 def produce(env_id: str, algos: tuple[str, ...], seed: int = 0) -> dict:
     """Train (where no committed model exists) and evaluate; returns the stored record."""
-    from agents.evaluation import evaluate
     from train.hyperparams import hyperparams_for
 
-    record = {"env": env_id, "eval_seed": EVAL_SEED, "episodes": EVAL_EPISODES, "training": {}}
+    record = {"env": env_id, "eval_seed": TEST_SEED, "episodes": EVAL_EPISODES, "training": {}}
     stored = RESULTS / f"{env_name(env_id)}.json"
     # Re-evaluating a committed model keeps the training time measured when it was trained.
     trained = json.loads(stored.read_text())["training"] if stored.exists() else {}
@@ -73,14 +76,14 @@ def produce(env_id: str, algos: tuple[str, ...], seed: int = 0) -> dict:
     here = Path.cwd()
     try:
         os.chdir(ROOT)  # model names in the record are repository paths
-        results = evaluate(env_id, [*policies, *BASELINES], EVAL_EPISODES, EVAL_SEED)
+        results = evaluate(env_id, [*policies, *COMPARED_BASELINES], EVAL_EPISODES, TEST_SEED)
     finally:
         os.chdir(here)
     record["policies"] = results["policies"]
     record["evaluate_command"] = (
         f"python -m train.evaluate --env {env_id} "
-        + " ".join(f"--policy {p}" for p in [*policies, *BASELINES])
-        + f" --episodes {EVAL_EPISODES} --seed {EVAL_SEED}"
+        + " ".join(f"--policy {p}" for p in [*policies, *COMPARED_BASELINES])
+        + f" --episodes {EVAL_EPISODES} --seed {TEST_SEED}"
     )
     RESULTS.mkdir(parents=True, exist_ok=True)
     (RESULTS / f"{env_name(env_id)}.json").write_text(json.dumps(record, indent=2) + "\n")
@@ -93,7 +96,7 @@ def render() -> str:
         "# Results",
         "",
         "Every row: one policy on the same "
-        f"{EVAL_EPISODES} held-out tasks (seeds {EVAL_SEED} …), deterministic actions. "
+        f"{EVAL_EPISODES} held-out tasks (seeds {TEST_SEED} …), deterministic actions. "
         "`gap` = (oracle mean return − policy mean return) / |oracle mean return|. Trained "
         "models are in `models/<EnvName>/<algo>.zip` (seed 0, the budget of "
         "`configs/hyperparams.yml`); `tests/train/test_results.py` re-evaluates them and checks "
@@ -138,7 +141,7 @@ def main(argv: list[str] | None = None) -> int:
 
         for env_id in args.env_ids or envs.ENV_IDS:
             record = produce(env_id, tuple(args.algos or ALGORITHMS))
-            plot({"env": env_id, "episodes": EVAL_EPISODES, "seed": EVAL_SEED,
+            plot({"env": env_id, "episodes": EVAL_EPISODES, "seed": TEST_SEED,
                   "policies": record["policies"]}, RESULTS / f"{env_name(env_id)}.png")
             print(f"{env_id}: done", flush=True)
     (ROOT / "docs" / "results.md").write_text(render())

@@ -2,8 +2,9 @@
 Universal Robots): pure numpy, no I/O, no RNG, no state; single poses optionally through
 numba-compiled kernels (``compiled.py``).
 
-Contract (see ARCHITECTURE.md): ``make_arm(name, **params)`` returns a frozen arm with
-``fk(q) -> (…, 4, 4)`` and ``ik(pose) -> (Q (…, K, dof), ok (…, K))``.
+Contract (``arm.Arm``; every arm is held to it by ``tests/envs/kinematics/test_arms.py``):
+``make_arm(name, **params)`` returns a frozen arm with ``fk(q) -> (…, 4, 4)`` and
+``ik(pose) -> (Q (…, K, dof), ok (…, K))``.
 """
 
 from __future__ import annotations

@@ -84,19 +84,6 @@ def as_float_array(value, name: str) -> np.ndarray:
     return array
 
 
-def validate_pose(pose, name: str = "pose") -> np.ndarray:
-    """Check a batch of homogeneous transforms (…, 4, 4) and return it as float64.
-
-    Raises ``ValueError`` for a wrong shape, NaN/inf, a bottom row other than (0, 0, 0, 1),
-    or a rotation block that is not a proper rotation within ``ORTHONORMAL_TOL``.
-    """
-    pose = as_float_array(pose, name)
-    if pose.ndim < 2 or pose.shape[-2:] != (4, 4):
-        raise ValueError(f"{name} must have shape (..., 4, 4), got {pose.shape}")
-    validate_rotation(pose[..., :3, :3], name)
-    return pose
-
-
 def validate_rotation(rotation: np.ndarray, name: str = "rotation") -> None:
     """``ValueError`` unless every (…, 3, 3) block is a proper rotation (``ORTHONORMAL_TOL``).
 

@@ -20,7 +20,6 @@ from .collision import (
     PathResult,
     body_lever_arms,
     candidate_pairs,
-    lever_arms,
 )
 from .model import arm_spec, build_arm_model, build_model
 from .scene_file import SceneFile, SceneFileError, load_scene_file
@@ -46,7 +45,6 @@ __all__ = [
     "build_arm_model",
     "build_model",
     "candidate_pairs",
-    "lever_arms",
     "load_scene_file",
     "milling_cell_poses",
     "register_tree_builder",

@@ -10,8 +10,9 @@ Resolution, and why sampling is safe
 A point p rigidly attached downstream of joint i moves, when the joints move at rates q̇,
 with speed |ṗ| ≤ Σ_hinge R_i·|q̇_i| + Σ_slide |q̇_j|, where R_i bounds the distance from
 hinge i's axis to any collision-geom point downstream of it over *all* configurations
-(:func:`lever_arms` computes it from the compiled model: body offsets, each geom's
-bounding sphere ``geom_rbound``, plus the full stroke of every slide in between).
+(``CollisionChecker.lever``, the largest over bodies of :func:`body_lever_arms`, computes
+it from the compiled model: body offsets, each geom's bounding sphere ``geom_rbound``, plus
+the full stroke of every slide in between).
 Integrating along the path, between two consecutive samples every geom point moves at
 most
 
@@ -141,13 +142,6 @@ class PathResult:
     def __hash__(self) -> int:
         fraction = None if math.isnan(self.first_fraction) else self.first_fraction
         return hash((self.collides, fraction, self.contacts, self.n_samples))
-
-
-def lever_arms(model: mujoco.MjModel) -> np.ndarray:
-    """Per-joint bound on point speed per unit joint speed, (njnt,): m/rad for hinges
-    (largest distance from the axis to any downstream collision-geom point, over all
-    configurations), 1 for slides: the largest of :func:`body_lever_arms` over bodies."""
-    return body_lever_arms(model, model.njnt)[0].max(axis=0)
 
 
 def body_lever_arms(model: mujoco.MjModel, dof: int) -> tuple[np.ndarray, np.ndarray]:

@@ -10,10 +10,11 @@ import pytest
 
 import envs
 from agents import DPOracle, RecedingDP, ladder_q_tables, make_baseline
+from tests.agents.brute_force import brute_force
 
 #: (env id, kwargs, seeds): arms with 1–8 branches, invalid branches (rod), terminal
-#: collisions (spherical, rod, milling cell), collisions that do not end the episode, and a
-#: time term. Dual-arm ids are absent while their models do not build.
+#: collisions (spherical, rod, milling cell), collisions that do not end the episode, a
+#: time term, and a two-arm system whose arms can hit each other.
 CASES = [
     ("IKBranch/RodMechanism-v1", {"n_waypoints": 4}, (0, 1, 2)),
     ("IKBranch/RodMechanism-v1", {"n_waypoints": 4, "time_weight": 0.5}, (3,)),
@@ -21,35 +22,13 @@ CASES = [
     ("IKBranch/Cylindrical-v1", {"n_waypoints": 5, "terminate_on_collision": False}, (0, 1)),
     ("IKBranch/ToolTransfer-v0", {"n_waypoints": 3}, (0, 1)),
     ("IKBranch/Anthropomorphic-v1", {"n_waypoints": 3}, (4,)),
+    ("IKBranch/DualRRPRPP-v0", {"n_waypoints": 5}, (0, 1)),
 ]
 PARAMS = [
     pytest.param(env_id, kwargs, seed, id=f"{env_id.split('/')[1]}-{i}-s{seed}")
     for i, (env_id, kwargs, seeds) in enumerate(CASES)
     for seed in seeds
 ]
-
-
-def brute_force(env) -> float:
-    """The best return over every mask-respecting action sequence, from the price table.
-
-    Each sequence is walked forward: a terminal edge ends it (later actions do not exist).
-    """
-    n, k = env.task.n_waypoints, env.arm.n_branches
-    edges = [env.edge_rewards(i) for i in range(n)]
-    best = -np.inf
-    for actions in itertools.product(range(k), repeat=n):
-        total, row = 0.0, 0
-        for i, branch in enumerate(actions):
-            if not env.valid[i, branch]:
-                total = -np.inf
-                break
-            reward, terminal = edges[i]
-            total += reward[row, branch]
-            if terminal[row, branch]:
-                break
-            row = branch
-        best = max(best, total)
-    return float(best)
 
 
 def play(env, policy, seed: int) -> tuple[float, list[int]]:

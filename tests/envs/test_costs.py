@@ -17,8 +17,6 @@ def test_travel_is_the_papers_sum_of_joint_moves():
     q1 = np.radians([10.0, -20.0, 30.0, 0.0, 5.0, -5.0])
     assert cost.travel(q0, q1) == pytest.approx(np.radians(70.0))
     assert cost.time(q0, q1) == pytest.approx(np.radians(30.0) / DEFAULT_REVOLUTE_SPEED)
-    travel, time = cost.motion_reward(q0, q1)
-    assert travel == -cost.travel(q0, q1) and time == 0.0  # time_weight defaults to 0
 
 
 def test_prismatic_joints_are_scaled_and_have_their_own_speed():
@@ -34,11 +32,10 @@ def test_prismatic_joints_are_scaled_and_have_their_own_speed():
 def test_joint_weights_and_speeds_override_the_defaults():
     arm = make_arm("anthropomorphic")
     cost = TransitionCost.for_arm(arm, joint_weights=[2, 0, 0, 0, 0, 1],
-                                  joint_speeds=[1, 1, 1, 1, 1, 0.25], time_weight=3.0)
+                                  joint_speeds=[1, 1, 1, 1, 1, 0.25])
     q1 = np.array([0.1, 5.0, 5.0, 5.0, 5.0, 0.2])
     assert cost.travel(np.zeros(6), q1) == pytest.approx(0.4)
     assert cost.time(np.zeros(6), q1) == pytest.approx(5.0)
-    assert cost.motion_reward(np.zeros(6), q1)[1] == pytest.approx(-15.0)
 
 
 @pytest.mark.parametrize(

@@ -91,3 +91,20 @@ def test_aggregation_recovers_known_iqm_intervals_and_improvement(tmp_path):
     assert learned["success"][1] <= success <= learned["success"][2]
     per_run = scores.mean(axis=1)
     assert learned["representative_seed"] == int(np.argmin(np.abs(per_run - point)))
+
+
+def test_probability_of_improvement_equals_rliables():
+    # The vectorised count against rliable's per-task Mann-Whitney U, ties included
+    # (scores on a coarse grid tie often; identical columns take rliable's 0.5 branch).
+    from rliable import metrics
+
+    from train.aggregate import probability_of_improvement
+
+    rng = np.random.default_rng(0)
+    for runs_x, runs_y in ((5, 1), (3, 3), (1, 1), (5, 5)):
+        x = np.round(rng.normal(size=(runs_x, 40)), 1)
+        y = np.round(rng.normal(size=(runs_y, 40)), 1)
+        y[:, :5] = x[:runs_y, :5] if runs_x == runs_y else y[:, :5]
+        assert probability_of_improvement(x, y) == metrics.probability_of_improvement(x, y)
+        z = rng.normal(size=(runs_x, 40))
+        assert probability_of_improvement(z, y) == metrics.probability_of_improvement(z, y)

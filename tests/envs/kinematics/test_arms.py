@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 import pytest
 
-from envs.kinematics import ARM_NAMES, make_arm
+from envs.kinematics import ARM_NAMES, INDUSTRIAL_ARM_NAMES, SEED_ARM_NAMES, make_arm
 from envs.kinematics.arm import PRISMATIC, REVOLUTE
 
 N_CONFIGS = 1000
@@ -38,11 +38,55 @@ def arm(request):
     return make_arm(request.param)
 
 
-def test_registry_is_complete_and_ordered():
-    assert set(ARM_NAMES) >= {
-        "cartesian", "cylindrical", "spherical", "anthropomorphic", "cylindrical4",
-    }
-    assert len(set(ARM_NAMES)) == len(ARM_NAMES)
+#: The six-axis arms' branches as their docstrings list them: shoulder slowest, wrist fastest.
+SIX_AXIS_BRANCHES = (
+    "front/elbow-up/wrist+", "front/elbow-up/wrist-", "front/elbow-down/wrist+",
+    "front/elbow-down/wrist-", "back/elbow-up/wrist+", "back/elbow-up/wrist-",
+    "back/elbow-down/wrist+", "back/elbow-down/wrist-",
+)
+WRIST_BRANCHES = ("wrist+", "wrist-")
+#: Every arm, in registry order, written out from the papers (docs/kinematics.md, the
+#: seeds' joint tables) and the data sheets: joint types (R revolute, P prismatic), the
+#: closed-form branches in solver order, what the target is, and whether fk is one arm
+#: relative to another. The seed arms come first: ``SEED_ARM_NAMES`` is a slice.
+ARMS = {
+    "cartesian": ("PPPRRR", WRIST_BRANCHES, "pose", False),
+    "cylindrical": ("PRPRRR", WRIST_BRANCHES, "pose", False),
+    "spherical": ("RRPRRR", WRIST_BRANCHES, "pose", False),
+    "anthropomorphic": ("RRRRRR", SIX_AXIS_BRANCHES, "pose", False),
+    "cylindrical4": ("PRPR", ("unique",), "pose", False),
+    "dual_rrp_rpp": ("RRPRPP", ("phi1+", "phi1-"), "pose", True),
+    "dual_rrr_ppp": ("RRRPPP", ("phi2+", "phi2-"), "pose", True),
+    "dual_ppr_prr": ("PPRPRR", ("phi5+", "phi5-"), "pose", True),
+    "rod_mechanism": ("RRR", ("r+/elbow+", "r+/elbow-", "r-/elbow+", "r-/elbow-"),
+                      "position", False),
+    **{name: ("RRRRRR", SIX_AXIS_BRANCHES, "pose", False)
+       for name in ("opw", "kuka_kr6_r700", "abb_irb2400", "abb_irb2600", "abb_irb4600",
+                    "ur", "ur5e", "ur10e")},
+}
+N_SEED_ARMS = 9
+
+
+def test_registry_lists_every_arm_in_order():
+    assert ARM_NAMES == tuple(ARMS)
+    assert SEED_ARM_NAMES == tuple(ARMS)[:N_SEED_ARMS]
+    assert INDUSTRIAL_ARM_NAMES == tuple(ARMS)[N_SEED_ARMS:]
+
+
+@pytest.mark.parametrize("name", ["cartesian", "cylindrical", "spherical"])
+def test_wrist_branches_are_named_by_the_sign_of_the_wrist_bend(name):
+    # Their only branches are the wrist's: R_w = Ry(a)·Rx(b)·Ry(c) (Klyuiko 1986, eq. 1),
+    # b = ±arccos R_w[1,1] the bend between the arm axis and the tool axis, joint 4. The
+    # other arms' labels are checked against their geometry in their own test files.
+    arm = make_arm(name)
+    solutions, valid = arm.ik(arm.fk(sample_configurations(arm, 500, seed=13)))
+    bend = solutions[..., 4]
+    for k, label in enumerate(arm.branch_labels):
+        sign = 1.0 if label == "wrist+" else -1.0
+        assert np.all(sign * bend[valid[:, k], k] > 0), label
+    both = valid.all(axis=1)
+    assert both.mean() > 0.5, "both wrist branches exist for most poses"
+    np.testing.assert_allclose(bend[both, 0], -bend[both, 1], atol=1e-12)
 
 
 def test_unknown_arm_and_bad_parameters_are_value_errors():
@@ -63,8 +107,12 @@ def test_unknown_arm_and_bad_parameters_are_value_errors():
 
 
 def test_contract_attributes(arm):
-    assert arm.dof == len(arm.joint_names) == len(arm.joint_types)
-    assert set(arm.joint_types) <= {REVOLUTE, PRISMATIC}
+    joints, closed_form, target, relative = ARMS[arm.name]
+    kinds = {"R": REVOLUTE, "P": PRISMATIC}
+    assert arm.joint_types == tuple(kinds[kind] for kind in joints)
+    assert arm.dof == len(joints) == len(arm.joint_names)
+    assert arm.closed_form_labels == closed_form
+    assert (arm.target, arm.relative) == (target, relative)
     assert arm.joint_limits.shape == (arm.dof, 2)
     assert arm.n_branches == len(arm.branch_labels) == len(set(arm.branch_labels))
     assert arm.home.shape == (arm.dof,)
