@@ -593,10 +593,19 @@ def _json_object(text: str | None, option: str) -> dict[str, Any] | None:
     return value
 
 
+def _solids(spec: dict) -> list[dict]:
+    """The solids of a tool spec: its parts, or the spec itself (``envs/tools.py``)."""
+    parts = spec.get("parts")
+    if isinstance(parts, list):
+        return [part for part in parts if isinstance(part, dict)]
+    return [spec]
+
+
 def _check_mesh(spec: dict, option: str) -> None:
-    if "mesh" in spec and not isinstance(spec["mesh"], str):
-        raise PlanInputError(f"{option}: mesh must be the path of an STL/OBJ file (a string), "
-                             f"got {spec['mesh']!r}")
+    for solid in _solids(spec):
+        if "mesh" in solid and not isinstance(solid["mesh"], str):
+            raise PlanInputError(f"{option}: mesh must be the path of an STL/OBJ file (a "
+                                 f"string), got {solid['mesh']!r}")
 
 
 def parse_tool(text: str | None) -> tuple[dict[str, Any] | None, Path | None]:
@@ -624,8 +633,9 @@ def parse_tool(text: str | None) -> tuple[dict[str, Any] | None, Path | None]:
     if not isinstance(spec, dict):
         raise PlanInputError(f"--tool {text}: must hold a JSON object")
     _check_mesh(spec, f"--tool {text}")
-    if isinstance(spec.get("mesh"), str) and not Path(spec["mesh"]).is_absolute():
-        spec["mesh"] = str(path.parent / spec["mesh"])
+    for solid in _solids(spec):  # the one solid, or every part
+        if isinstance(solid.get("mesh"), str) and not Path(solid["mesh"]).is_absolute():
+            solid["mesh"] = str(path.parent / solid["mesh"])
     return spec, path
 
 

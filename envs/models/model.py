@@ -8,7 +8,7 @@ import mujoco
 import numpy as np
 
 from envs.kinematics import Arm, make_arm
-from envs.tools import Tool
+from envs.tools import Tool, ToolPart
 
 from .builders import COLLISION_BIT, TREE_BUILDERS, ArmTree, exclude
 from .scenes import SCENES, default_tool
@@ -69,7 +69,7 @@ def build_arm_model(
 
     ``tool``: True adds the built-in held tool (a 0.35 m cylinder along the tool axis from
     the fk frame, body ``tool``); by default it is on in scenes that are about carrying a
-    tool (the milling cell); a :class:`~envs.tools.Tool` adds that tool instead (its solid
+    tool (the milling cell); a :class:`~envs.tools.Tool` adds that tool instead (its solids
     in body ``tool`` on the fk frame, a site ``tcp`` at its TCP). ``scene_kwargs`` go to
     the scene builder (e.g. ``seed`` for ``random_clutter``).
     """
@@ -88,11 +88,10 @@ def build_arm_model(
 
 
 def add_tool(spec: mujoco.MjSpec, tree: ArmTree, tool: Tool) -> None:
-    """``tool``'s solid (visual and collision twins) in a body ``tool`` welded to the fk
-    frame (the site ``ee``), and a site ``tcp`` at its TCP. The tool does not collide with
-    the two bodies before the fk frame's (it is mounted through them)."""
-    from .builders import TOOL_RGBA, add_part
-
+    """``tool``'s solids (visual and collision twins of each part, ``envs/tools.py``) in a
+    body ``tool`` welded to the fk frame (the site ``ee``), and a site ``tcp`` at its TCP.
+    Part 0 is the geom ``tool``, part i the geom ``tool_<i>``. The tool does not collide
+    with the two bodies before the fk frame's (it is mounted through them)."""
     if not tree.ee_body:
         raise ValueError("a tool needs an arm with an fk frame (site ee); two-arm systems "
                          "have none")
@@ -100,29 +99,8 @@ def add_tool(spec: mujoco.MjSpec, tree: ArmTree, tool: Tool) -> None:
     holder = spec.body(tree.ee_body).add_body()
     holder.name = "tool"
     holder.pos, holder.quat = np.array(ee.pos), np.array(ee.quat)
-    quat = np.zeros(4)
-    mujoco.mju_mat2Quat(quat, tool.offset[:3, :3].ravel())
-    if tool.shape == "mesh":
-        mesh = spec.add_mesh()
-        mesh.name = "tool_mesh"
-        mesh.file = str(tool.mesh.resolve())
-        for visual in (True, False):
-            geom = holder.add_geom()
-            geom.name = "tool_vis" if visual else "tool"
-            geom.type, geom.meshname = mujoco.mjtGeom.mjGEOM_MESH, mesh.name
-            geom.pos, geom.quat = tool.offset[:3, 3], quat
-            geom.contype = geom.conaffinity = 0 if visual else 1
-            geom.group = 2 if visual else 3
-            geom.rgba = TOOL_RGBA
-    elif tool.shape == "cylinder":
-        radius, length = tool.size
-        start, end = tool.offset[:3, 3], tool.offset[:3, 3] + length * tool.offset[:3, 2]
-        add_part(holder, "tool", "cylinder", [radius], TOOL_RGBA,
-                 fromto=np.concatenate([start, end]))
-    else:
-        half = np.array(tool.size) / 2
-        centre = tool.offset[:3, 3] + half[2] * tool.offset[:3, 2]
-        add_part(holder, "tool", "box", half, TOOL_RGBA, pos=centre, quat=quat)
+    for index, part in enumerate(tool.parts):
+        _add_tool_part(spec, holder, part, "tool" if index == 0 else f"tool_{index}")
     site = holder.add_site()
     site.name = "tcp"
     site.pos = tool.tcp[:3, 3]
@@ -140,6 +118,37 @@ def add_tool(spec: mujoco.MjSpec, tree: ArmTree, tool: Tool) -> None:
         body = parent
     for name in mounts:
         exclude(spec, name, "tool")
+
+
+def _add_tool_part(spec: mujoco.MjSpec, holder: mujoco.MjsBody, part: ToolPart,
+                   name: str) -> None:
+    """One solid of a tool in ``holder`` (the fk frame): geoms ``name`` (collision) and
+    ``name_vis``, placed at the part's offset."""
+    from .builders import TOOL_RGBA, add_part
+
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, part.offset[:3, :3].ravel())
+    if part.shape == "mesh":
+        mesh = spec.add_mesh()
+        mesh.name = f"{name}_mesh"
+        mesh.file = str(part.mesh.resolve())
+        for visual in (True, False):
+            geom = holder.add_geom()
+            geom.name = f"{name}_vis" if visual else name
+            geom.type, geom.meshname = mujoco.mjtGeom.mjGEOM_MESH, mesh.name
+            geom.pos, geom.quat = part.offset[:3, 3], quat
+            geom.contype = geom.conaffinity = 0 if visual else 1
+            geom.group = 2 if visual else 3
+            geom.rgba = TOOL_RGBA
+    elif part.shape == "cylinder":
+        radius, length = part.size
+        start, end = part.offset[:3, 3], part.offset[:3, 3] + length * part.offset[:3, 2]
+        add_part(holder, name, "cylinder", [radius], TOOL_RGBA,
+                 fromto=np.concatenate([start, end]))
+    else:
+        half = np.array(part.size) / 2
+        centre = part.offset[:3, 3] + half[2] * part.offset[:3, 2]
+        add_part(holder, name, "box", half, TOOL_RGBA, pos=centre, quat=quat)
 
 
 def build_model(

@@ -28,6 +28,17 @@ TORCH = {"shape": "cylinder", "size": [0.02, 0.3],
     ({"shape": "cylinder", "size": [0.02, math.nan]}, "finite"),
     ({"shape": "mesh"}, "needs 'mesh'"),
     ({"shape": "mesh", "mesh": "no/such/torch.stl"}, "no such file"),
+    ({"parts": []}, "non-empty list"),
+    ({"parts": {"shape": "box"}}, "non-empty list"),
+    ({"parts": [{"shape": "box", "size": [0.1, 0.1, 0.1]}], "shape": "box"}, "not both"),
+    ({"parts": [{"shape": "box", "size": [0.1, 0.1, 0.1], "tcp": {}}]},
+     r"parts\[0\]: unknown keys \['tcp'\] \(the tcp is the whole tool's"),
+    ({"parts": [{"shape": "box", "size": [0.1, 0.1, 0.1]}, {"shape": "cone"}]},
+     r"tool parts\[1\] shape must be one of"),
+    ({"parts": [{"shape": "box", "size": [0.1, 0.1, 0.1]}, "box"]},
+     r"tool parts\[1\] must be a dict"),
+    ({"parts": [{"shape": "mesh", "mesh": 3}]}, r"parts\[0\] mesh must be the path"),
+    ({"parts": [{"shape": "box", "size": [0.1, 0.1, 0.1]}], "colour": "red"}, "unknown keys"),
 ])
 def test_malformed_tools_are_refused(spec, match):
     with pytest.raises(ValueError, match=match):
@@ -92,3 +103,58 @@ def test_a_tool_collides_where_the_bare_arm_does_not():
     q = q[valid]
     assert not bare.checker.collides(q).any()
     assert armed.checker.collides(q).all()
+
+
+#: A gripper (box) holding a long rod that sticks out sideways from its end: part 1 alone
+#: reaches where the one-solid tool of part 0 cannot.
+GRIPPER_AND_ROD = {
+    "parts": [{"shape": "box", "size": [0.08, 0.08, 0.1]},
+              {"shape": "cylinder", "size": [0.015, 0.4],
+               "offset": {"pos": [0.0, 0.0, 0.1], "rpy": [0.0, math.pi / 2, 0.0]}}],
+    "tcp": {"pos": [0.4, 0.0, 0.1]},
+}
+
+
+def test_a_tool_of_several_parts_is_each_part_in_the_model():
+    tool = Tool.from_spec(GRIPPER_AND_ROD)
+    assert [part.shape for part in tool.parts] == ["box", "cylinder"]
+    assert tool.shape == "box" and tool.size == (0.08, 0.08, 0.1)  # part 0's
+    env = IKBranchEnv(arm="kuka_kr6_r700", scene="empty", task="random", tool=GRIPPER_AND_ROD)
+    model, data = env.model, mujoco.MjData(env.model)
+    gripper = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "tool")
+    rod = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "tool_1")
+    assert gripper >= 0 and rod >= 0 and model.geom_contype[rod] == 1
+    assert model.geom_bodyid[gripper] == model.geom_bodyid[rod]  # one body: never a pair
+    q = np.array([0.3, -1.2, 0.8, 0.4, 0.9, -0.7])
+    data.qpos[:6] = q
+    mujoco.mj_kinematics(model, data)
+    flange = env.arm.fk(q)
+    # The rod: 0.4 m along the flange's x (its offset frame's z), starting 0.1 m out on z.
+    start = flange[:3, :3] @ np.array([0.0, 0.0, 0.1]) + flange[:3, 3]
+    np.testing.assert_allclose(data.geom_xpos[rod], start + 0.2 * flange[:3, 0], atol=1e-9)
+    # The box: its centre half its length (0.05 m) along the flange's z.
+    np.testing.assert_allclose(data.geom_xpos[gripper],
+                               flange[:3, :3] @ np.array([0.0, 0.0, 0.05]) + flange[:3, 3],
+                               atol=1e-9)
+    tcp = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "tcp")
+    np.testing.assert_allclose(data.site_xpos[tcp], tool.tcp_poses(flange)[:3, 3], atol=1e-9)
+
+
+def test_the_second_part_of_a_tool_collides_on_its_own():
+    # The flange pointing down 0.25 m over the floor, tilted about its y so that the rod
+    # (along the flange's x) dips: its end at 0.25 − 0.1·cos(tilt) − 0.4·sin(tilt) < 0,
+    # the gripper's lowest corner still ~0.14 m up.
+    one_part = IKBranchEnv(arm="kuka_kr6_r700", scene="empty", task="random",
+                           tool={"parts": GRIPPER_AND_ROD["parts"][:1]})
+    two_parts = IKBranchEnv(arm="kuka_kr6_r700", scene="empty", task="random",
+                            tool=GRIPPER_AND_ROD)
+    c, s = math.cos(-0.45), math.sin(-0.45)
+    down = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])
+    tilted = down @ np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+    pose = np.eye(4)
+    pose[:3, :3], pose[:3, 3] = tilted, [0.45, 0.0, 0.25]
+    q, valid = one_part.arm.ik(pose)
+    q = q[valid]
+    assert len(q)
+    assert not one_part.checker.collides(q).any()
+    assert two_parts.checker.collides(q).all()

@@ -425,6 +425,13 @@ def test_tool_file_mesh_paths_are_relative_to_the_file(tmp_path):
     assert path == tmp_path / "tools" / "torch.json"
     with pytest.raises(ValueError, match="no such file"):
         Tool.from_spec(spec)
+    # A tool of parts: each part's mesh, likewise.
+    (tmp_path / "tools" / "gripper.json").write_text(
+        '{"parts": [{"shape": "box", "size": [0.1, 0.1, 0.1]},'
+        ' {"shape": "mesh", "mesh": "nozzle.obj"}, {"shape": "mesh", "mesh": "/abs/n.stl"}]}')
+    spec, _ = plan_module.parse_tool(str(tmp_path / "tools" / "gripper.json"))
+    assert [part.get("mesh") for part in spec["parts"]] == [
+        None, str(tmp_path / "tools" / "nozzle.obj"), "/abs/n.stl"]
 
 
 def test_a_trained_model_plans_and_a_mismatched_one_is_bad_input(cell, capsys):
