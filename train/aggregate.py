@@ -121,7 +121,7 @@ def summarise(root: Path, env_id: str, entry: dict[str, Any]) -> dict[str, Any]:
         runs[name] = {"returns": np.array([metrics_["returns"]]),
                       "successes": np.array([metrics_["successes"]], dtype=float),
                       "decision_ms": np.array([metrics_["decision_ms"]])}
-    seeds = {}
+    seeds, budgets = {}, {}
     for algo, records in entry["trials"].items():
         for record in records:
             if record["policy"]["returns"] and len(record["policy"]["returns"]) != len(oracle):
@@ -134,6 +134,8 @@ def summarise(root: Path, env_id: str, entry: dict[str, Any]) -> dict[str, Any]:
             "decision_ms": np.array([r["policy"]["decision_ms"] for r in records]),
         }
         seeds[algo] = [r["seed"] for r in records]
+        budgets[algo] = {"timesteps": sorted({int(r["timesteps"]) for r in records}),
+                         "train_minutes": float(np.mean([r["train_minutes"] for r in records]))}
     scale = np.where(np.abs(oracle) > 0, np.abs(oracle), 1.0)
     result: dict[str, Any] = {"env": env_id, "episodes": len(oracle),
                               "task_seed": entry["baselines"]["task_seed"],
@@ -150,6 +152,7 @@ def summarise(root: Path, env_id: str, entry: dict[str, Any]) -> dict[str, Any]:
             score = (returns[:, informative] - random[informative]) / span[informative]
             row["score"] = _estimate({"x": score}, _iqm)["x"]
             run["score"] = score
+        row.update(budgets.get(name, {}))
         result["policies"][name] = row
     for algo in entry["trials"]:
         row = result["policies"][algo]
@@ -179,6 +182,10 @@ def main(argv: list[str] | None = None) -> int:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--root", type=Path, default=ROOT / "runs" / "sweep")
     parser.add_argument("--out", type=Path, help="write the aggregate as JSON here")
+    parser.add_argument("--publish", action="store_true",
+                        help="copy the representative models and records into models/ and "
+                             "docs/results/sweep/, plot, and render docs/results.md "
+                             "(train/publish.py)")
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
     records = aggregate(args.root)
     for env_id, record in records.items():
@@ -191,6 +198,12 @@ def main(argv: list[str] | None = None) -> int:
                   f"{success[0]:.0%} [{success[1]:.0%}, {success[2]:.0%}]")
     if args.out:
         args.out.write_text(json.dumps(records, indent=1) + "\n")
+    if args.publish:
+        from train.publish import publish
+        from train.results import write_results
+
+        written = publish(args.root, records)
+        print(f"published {len(written)} files; {write_results()}")
     return 0
 
 

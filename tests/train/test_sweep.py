@@ -38,8 +38,24 @@ def test_tiny_sweep_writes_run_directories_and_resumes(tmp_path):
         assert sweep.main(argv) == 0  # resumed: finished trials are skipped, not retrained
         assert stamps == {seed: (d / "model.zip").stat().st_mtime_ns
                           for seed, d in models.items()}
-        record = aggregate.aggregate(tmp_path)["IKBranch/ToolTransfer-v1"]
-        assert record["policies"]["maskable_ppo"]["runs"] == 2
+        records = aggregate.aggregate(tmp_path)
+        row = records["IKBranch/ToolTransfer-v1"]["policies"]["maskable_ppo"]
+        assert row["runs"] == 2 and row["timesteps"] == [128]
+        # Publishing copies the representative seed's model and record, and renders them.
+        from train import publish
+
+        out, models = tmp_path / "published", tmp_path / "repo" / "models"
+        publish.publish(tmp_path, records, out=out, models=models)
+        chosen = models / "ToolTransfer-v1" / "maskable_ppo.zip"
+        source = sweep.run_dir(tmp_path, "IKBranch/ToolTransfer-v1", "maskable_ppo",
+                               row["representative_seed"]) / "model.zip"
+        assert chosen.read_bytes() == source.read_bytes()
+        published = json.loads((out / "ToolTransfer-v1" / "maskable_ppo.json").read_text())
+        assert published["seed"] == row["representative_seed"]
+        assert published["command"].startswith("python -m train --algo maskable_ppo")
+        text = "\n".join(publish.render_sweep(out / "aggregate.json"))
+        assert "### IKBranch/ToolTransfer-v1" in text
+        assert "| maskable_ppo | 2 | 128 |" in text
     finally:
         ray.shutdown()
 
@@ -63,7 +79,8 @@ def _synthetic_root(tmp_path, scores: np.ndarray, rival: np.ndarray):
     path.write_text(json.dumps(record))
     for seed, row in enumerate(scores):
         successes = [bool(s > 0.5) for s in row]
-        trial = {"env": env, "algo": "ppo", "seed": seed, "oracle": policy(oracle),
+        trial = {"env": env, "algo": "ppo", "seed": seed, "timesteps": 1000,
+                 "train_minutes": 1.0 + seed, "oracle": policy(oracle),
                  "policy": policy(10 * (row - 1), successes)}
         directory = sweep.run_dir(tmp_path, env, "ppo", seed)
         directory.mkdir(parents=True)
@@ -91,6 +108,7 @@ def test_aggregation_recovers_known_iqm_intervals_and_improvement(tmp_path):
     assert learned["success"][1] <= success <= learned["success"][2]
     per_run = scores.mean(axis=1)
     assert learned["representative_seed"] == int(np.argmin(np.abs(per_run - point)))
+    assert learned["timesteps"] == [1000] and learned["train_minutes"] == 1.5
 
 
 def test_probability_of_improvement_equals_rliables():

@@ -1,0 +1,207 @@
+"""Publish a sweep: ``python -m train.aggregate --publish [--root runs/sweep]``.
+
+From the sweep's run directories (``train.sweep``) and their aggregate
+(``train.aggregate``), for every env id with baselines:
+
+- ``docs/results/sweep/aggregate.json``: the interval estimates of every policy;
+- per algorithm, the **representative seed** (the one whose mean normalised score is
+  nearest the row's IQM; not the best one): its model copied to
+  ``models/<EnvName>/<algo>.zip`` and its evaluation record (200 held-out tasks, every
+  episode's return and success, the training command and budget) to
+  ``docs/results/sweep/<EnvName>/<algo>.json``, which ``tests/train/test_sweep_results.py``
+  re-evaluates;
+- ``docs/results/sweep/<EnvName>.png``: learning curves (held-out validation return
+  during training, IQM across seeds with its 95 % band);
+
+then ``docs/results.md`` is rendered again (``train.results.render``), this sweep's
+tables first.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+from typing import Any
+
+from train.sweep import env_name, run_dir
+
+ROOT = Path(__file__).resolve().parent.parent
+SWEEP_RESULTS = ROOT / "docs" / "results" / "sweep"
+MODELS = ROOT / "models"
+#: The learned policies' rivals in the goal checks (issue 14).
+PAPER_RULE, RECEDING_DP = "paper_rule", "receding_dp"
+#: Ids whose goal is success ≥ 99 % and an IQM gap ≤ 2 % on held-out scenes.
+HEADLINE_GOALS = ("IKBranch/ToolTransfer-v1", "IKBranch/Anthropomorphic-v2")
+
+
+def _interval(value, fmt: str = "{:.3f}") -> str:
+    if value is None:
+        return "n/a"
+    point, low, high = value
+    return f"{fmt.format(point)} [{fmt.format(low)}, {fmt.format(high)}]"
+
+
+def _percent(value) -> str:
+    if value is None:
+        return "n/a"
+    point, low, high = (100 * v for v in value)
+    return f"{point:.1f} % [{low:.1f}, {high:.1f}]"
+
+
+def _portable(command: str) -> str:
+    """A recorded command as a reader types it: ``python -m …`` with repository paths."""
+    words = command.split()
+    if len(words) > 1 and words[1] == "-m":
+        words[0] = "python"
+    return " ".join(words).replace(f"{ROOT}/", "")
+
+
+def plot_curves(env_id: str, record: dict[str, Any], path: Path) -> bool:
+    """Learning curves of every learned policy of ``record``; False when there are none."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    curves = {name: row["learning_curve"] for name, row in record["policies"].items()
+              if row.get("learning_curve")}
+    if not curves:
+        return False
+    figure, axes = plt.subplots(figsize=(6.4, 3.6), dpi=100)
+    for name, curve in curves.items():
+        steps = curve["timesteps"]
+        axes.plot(steps, curve["iqm"], label=f"{name} (IQM of {record['policies'][name]['runs']}"
+                                             " seeds)")
+        axes.fill_between(steps, curve["low"], curve["high"], alpha=0.25)
+    axes.set_xlabel("environment steps")
+    axes.set_ylabel("validation return (held-out scenes)")
+    axes.set_title(env_id)
+    axes.grid(alpha=0.3)
+    axes.legend(loc="lower right")
+    figure.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(path)
+    plt.close(figure)
+    return True
+
+
+def publish(root: Path, records: dict[str, dict[str, Any]], *, out: Path = SWEEP_RESULTS,
+            models: Path = MODELS) -> list[Path]:
+    """Copy the representative models and records, write the aggregate and the plots;
+    returns the files written."""
+    written = []
+    out.mkdir(parents=True, exist_ok=True)
+    for env_id, record in records.items():
+        name = env_name(env_id)
+        for algo, row in record["policies"].items():
+            seed = row.get("representative_seed")
+            if seed is None:
+                continue
+            directory = run_dir(root, env_id, algo, seed)
+            model = models / name / f"{algo}.zip"
+            model.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(directory / "model.zip", model)
+            trial = json.loads((directory / "evaluation.json").read_text())
+            trial["command"] = _portable((directory / "command.txt").read_text().strip())
+            trial["model"] = str(model.relative_to(models.parent))
+            target = out / name / f"{algo}.json"
+            target.parent.mkdir(parents=True, exist_ok=True)
+            target.write_text(json.dumps(trial, indent=1) + "\n")
+            written += [model, target]
+        plot = out / f"{name}.png"
+        if plot_curves(env_id, record, plot):
+            written.append(plot)
+    aggregate = out / "aggregate.json"
+    aggregate.write_text(json.dumps(records, indent=1) + "\n")
+    return [*written, aggregate]
+
+
+def goal_lines(records: dict[str, dict[str, Any]]) -> list[str]:
+    """Issue 14's goals, each checked against the aggregate, met or not."""
+    lines = []
+    for env_id, record in records.items():
+        policies = record["policies"]
+        for algo, row in policies.items():
+            if "improvement" not in row or PAPER_RULE not in row["improvement"]:
+                continue
+            low = row["improvement"][PAPER_RULE][1]
+            verdict = "met" if low > 0.5 else "**not met**"
+            lines.append(f"- {env_name(env_id)} {algo}: P(improvement over paper_rule) "
+                         f"{_interval(row['improvement'][PAPER_RULE])}, CI above 0.5: "
+                         f"{verdict}")
+            if env_id in HEADLINE_GOALS:
+                success, gap = row["success"][0], row["gap"][0]
+                verdict = "met" if success >= 0.99 and gap <= 0.02 else "**not met**"
+                lines.append(f"  - success {success:.1%} (≥ 99 %), IQM gap {gap:.2%} "
+                             f"(≤ 2 %): {verdict}")
+            rival = policies.get(RECEDING_DP)
+            if rival and row["decision_ms"] > 0:
+                ratio = rival["decision_ms"] / row["decision_ms"]
+                verdict = "met" if ratio >= 10 else "**not met**"
+                lines.append(f"  - decides {ratio:.1f}× faster than receding_dp "
+                             f"({row['decision_ms']:.2f} vs {rival['decision_ms']:.2f} ms; "
+                             f"≥ 10×): {verdict}")
+    return lines
+
+
+def render_sweep(aggregate_path: Path = SWEEP_RESULTS / "aggregate.json") -> list[str]:
+    """The sweep's part of docs/results.md (empty when nothing is published)."""
+    if not aggregate_path.exists():
+        return []
+    records = json.loads(aggregate_path.read_text())
+    out = aggregate_path.parent
+    lines = [
+        "## Multi-seed results on held-out scenes (`python -m train.sweep`)",
+        "",
+        "Per id: every learned policy trained with several seeds (Ray Tune sweep, the "
+        "budget of `configs/hyperparams.yml`, clutter drawn per episode from the training "
+        "scenes `envs.seeds.TRAIN_SCENES` where the id draws clutter), each evaluated on the "
+        "same held-out tasks (seeds from `envs.seeds.TEST_SEED`) on held-out scenes "
+        "(`HELD_OUT_SCENES`, never seen in training); the analytic baselines on the same "
+        "tasks. **score**: per task (R − R_random)/(R_oracle − R_random), so the DP oracle "
+        "is 1 and the uniform random policy 0; its IQM over runs × tasks (tasks on which "
+        "random already attains the optimum carry no information and are left out). "
+        "**gap**: per task (R_oracle − R)/|R_oracle|, IQM (the trimmed mean drops the worst "
+        "quarter: read it with the success rate). **P(> rule)**: probability that the "
+        "policy's score beats paper_rule's (receding_dp's) on a task. Brackets: 95 % "
+        "stratified-bootstrap CIs over runs and tasks (rliable, `train/aggregate.py`). "
+        "Models: the representative seed per row (`models/<EnvName>/<algo>.zip`), "
+        "re-evaluated by `tests/train/test_sweep_results.py`. Reproduce: "
+        "`python -m train.sweep --env ID --seeds 0-4` then "
+        "`python -m train.aggregate --publish`.",
+        "",
+        "### Goals (issue 14)",
+        "",
+        *goal_lines(records),
+        "",
+    ]
+    for env_id, record in records.items():
+        name = env_name(env_id)
+        lines += [f"### {env_id}", "",
+                  f"{record['episodes']} held-out tasks, {record['informative_tasks']} "
+                  f"informative; env kwargs {json.dumps(record['env_kwargs'])}.", "",
+                  "| policy | runs | steps | train min/run | score IQM | gap IQM | success | "
+                  "P(> paper_rule) | P(> receding_dp) | ms/decision |",
+                  "|---|---:|---:|---:|---|---|---|---|---|---:|"]
+        for policy, row in record["policies"].items():
+            steps = ", ".join(f"{n:,}" for n in row.get("timesteps", ()) if n)
+            minutes = f"{row['train_minutes']:.1f}" if row.get("seeds") else ""
+            improvement = row.get("improvement", {})
+            lines.append(
+                f"| {policy} | {row['runs']} | {steps} | {minutes} | "
+                f"{_interval(row.get('score'))} | {_percent(row['gap'])} | "
+                f"{_percent(row['success'])} | {_interval(improvement.get(PAPER_RULE))} | "
+                f"{_interval(improvement.get(RECEDING_DP))} | {row['decision_ms']:.2f} |")
+        lines.append("")
+        for policy, row in record["policies"].items():
+            trial = out / name / f"{policy}.json"
+            if row.get("seeds") and trial.exists():
+                data = json.loads(trial.read_text())
+                lines.append(f"- {policy}: seeds {row['seeds']}, representative seed "
+                             f"{data['seed']} (`{data['model']}`): `{data['command']}`")
+        plot = out / f"{name}.png"
+        if plot.exists():
+            lines += ["", f"![{env_id}](results/sweep/{plot.name})"]
+        lines.append("")
+    return lines
