@@ -175,9 +175,39 @@ class MovePricer:
         return np.array(found, dtype=bool)
 
     # ------------------------------------------------------- the generators' predicates
-    def is_free(self, q: np.ndarray) -> np.ndarray:
-        """(M,) True where configuration ``q[i]`` is collision-free."""
-        return ~self.configurations_collide(q)
+    def is_free(self, q: np.ndarray, need: int | None = None) -> np.ndarray:
+        """(M,) True where configuration ``q[i]`` is collision-free. With ``need`` (the
+        generators' sampling, ``envs.tasks.base.FreePredicate``) rows are checked in order
+        until ``need`` free ones are found, and the rows after come back False unchecked
+        (and uncached)."""
+        if need is None:
+            return ~self.configurations_collide(q)
+        q = _finite_rows(q, "configurations")
+        entries = self.configurations.entries
+        keys = [row.tobytes() for row in q]
+        free = np.zeros(len(q), dtype=bool)
+        start = 0
+        while start < len(q) and free.sum() < need:
+            # Cached rows answer at once; a run of unknown ones goes to the checker.
+            known = entries.get(keys[start])
+            if known is not None:
+                free[start] = not known
+                start += 1
+                continue
+            stop = start
+            while stop < len(q) and keys[stop] not in entries:
+                stop += 1
+            wanted = need - int(free.sum())
+            found = self.checker.first_free_rows(q[start:stop], wanted)
+            checked = stop - start if len(found) < wanted else int(found[-1]) + 1
+            self.configurations.make_room(checked)
+            block = np.zeros(stop - start, dtype=bool)
+            block[found] = True
+            for i in range(checked):
+                entries[keys[start + i]] = not block[i]
+            free[start : start + checked] = block[:checked]
+            start += checked
+        return free
 
     def is_path_free(self, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
         """(M,) True where the path ``q0[i]`` → ``q1[i]`` is collision-free (one call)."""

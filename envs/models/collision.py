@@ -430,6 +430,14 @@ class CollisionChecker:
             return self._filter.contacts(q) > 0
         return self.collides(q)
 
+    def first_free_rows(self, q: np.ndarray, need: int) -> np.ndarray:
+        """Indices of the first ``need`` collision-free rows of ``q`` (C-contiguous float64
+        (M, dof), checked finite), fewer if fewer are free: the rows after the ``need``-th
+        free one are not checked (the compiled backend stops there)."""
+        if self.backend == "compiled":
+            return np.flatnonzero(self._filter.contacts(q, need) == 0)
+        return np.flatnonzero(~self.collides(q))[:need]
+
     def _ends(self, q0, q1) -> tuple[np.ndarray, np.ndarray]:
         """Path ends as float arrays, ``ValueError`` for a wrong last axis or NaN/inf."""
         q0, q1 = np.asarray(q0, dtype=np.float64), np.asarray(q1, dtype=np.float64)

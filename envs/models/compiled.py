@@ -1008,16 +1008,21 @@ def path_steps(start_rows, end_rows, lever, resolution, out):
 
 
 @njit(cache=True)
-def check_configurations(tree, geometry, motion, exact, rows, out, counters):
+def check_configurations(tree, geometry, motion, exact, rows, need, out, counters):
     """``out[i]``: MuJoCo's contact count at configuration ``rows[i]`` (its leading qpos
     entries; the rest stay at ``qpos0``): 0 where the bounds prove it free, MuJoCo's own
-    count elsewhere. ``counters`` (3,): samples bounded, MuJoCo checks and exact pair
-    bounds computed are added to it."""
+    count elsewhere. ``need`` > 0: rows are checked in order until ``need`` free ones are
+    found; the rows after are not checked (``out`` −1). ``counters`` (3,): samples bounded,
+    MuJoCo checks and exact pair bounds computed are added to it."""
     xpos, xmat, wpos, wrot, rates, coarse = _work(tree, geometry)
     kinematic = tree[:12]
     qpos0 = tree[11]
     qpos = np.empty(len(qpos0))
+    free = 0
     for i in range(rows.shape[0]):
+        if need > 0 and free >= need:
+            out[i] = -1
+            continue
         _fill_qpos(qpos, qpos0, rows[i])
         counters[0] += 1
         step = _sample_step(kinematic, geometry, qpos, xpos, xmat, wpos, wrot, rates, coarse,
@@ -1027,6 +1032,8 @@ def check_configurations(tree, geometry, motion, exact, rows, out, counters):
         else:
             counters[1] += 1
             out[i] = _exact_contacts(qpos, exact)
+        if out[i] == 0:
+            free += 1
 
 
 @njit(cache=True)
@@ -1140,11 +1147,12 @@ class CompiledFilter:
         """Follow changed static geoms of the model (see :func:`refresh_static`)."""
         refresh_static(self.scene, self._model, geoms)
 
-    def contacts(self, rows: np.ndarray) -> np.ndarray:
-        """(M,) contact counts at configurations ``rows`` (M, dof): 0 where proven free."""
+    def contacts(self, rows: np.ndarray, need: int = 0) -> np.ndarray:
+        """(M,) contact counts at configurations ``rows`` (M, dof): 0 where proven free.
+        ``need`` > 0: only until ``need`` free rows are found (the rest −1, unchecked)."""
         out = np.empty(len(rows), dtype=np.int64)
         check_configurations(self.scene.tree, self.scene.geometry, self.scene.motion,
-                             self._exact, rows, out, self.counters)
+                             self._exact, rows, need, out, self.counters)
         return out
 
     def paths(self, start_rows: np.ndarray, end_rows: np.ndarray, steps: np.ndarray,

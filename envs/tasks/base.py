@@ -10,8 +10,14 @@ import numpy as np
 
 from envs.kinematics import Arm
 
-#: Collision predicate the env hands to generators: (M, dof) -> (M,) bool, True = free.
-FreePredicate = Callable[[np.ndarray], np.ndarray]
+class FreePredicate(Protocol):
+    """Collision predicate the env hands to generators: (M, dof) -> (M,) bool, True =
+    free. ``need``: the caller uses only the first ``need`` free rows, so rows after the
+    ``need``-th free one may come back False without being checked (the env stops there)."""
+
+    def __call__(self, q: np.ndarray, need: int | None = None) -> np.ndarray: ...
+
+
 #: Path predicate: q0 (M, dof), q1 (M, dof) -> (M,) bool, True where the linear joint-space
 #: path q0 → q1 is collision-free (the env's path check, the one ``step`` charges).
 PathPredicate = Callable[[np.ndarray, np.ndarray], np.ndarray]
@@ -80,7 +86,7 @@ def sample_free_configurations(
     have = 0
     for _ in range(max_rounds):
         draw = rng.uniform(lower, upper, size=(max(2 * (count - have), 8), arm.dof))
-        free = draw[is_free(draw)]
+        free = draw[is_free(draw, need=count - have)][: count - have]
         found.append(free)
         have += len(free)
         if have >= count:

@@ -79,6 +79,17 @@ def test_caches_answer_as_the_checker_and_keep_their_bounds():
                                   pricer.checker.paths_collide(q0[0], q1))
     np.testing.assert_array_equal(pricer.configurations_collide(q0),
                                   pricer.checker.collides(q0))
+    # The generators' sampling: the first ``need`` free rows, later ones False unchecked.
+    free = ~pricer.checker.collides(q1)
+    for need in (1, 3, int(free.sum())):
+        mask = pricer.is_free(q1 + 0.5 * np.sign(-q1), need=need)  # fresh rows: misses
+        expected_rows = np.flatnonzero(~pricer.checker.collides(q1 + 0.5 * np.sign(-q1)))[:need]
+        np.testing.assert_array_equal(np.flatnonzero(mask), expected_rows)
+    np.testing.assert_array_equal(pricer.is_free(q1, need=2),  # some cached, some not
+                                  np.isin(np.arange(len(q1)), np.flatnonzero(free)[:2]))
+    pricer.configurations_collide(q1[:5])
+    np.testing.assert_array_equal(pricer.is_free(q1, need=2),
+                                  np.isin(np.arange(len(q1)), np.flatnonzero(free)[:2]))
     pricer.paths.bound = 10
     pricer.paths_collide(q0[:8] + 0.01, q1[:8])
     assert len(pricer.paths) == 8  # full: cleared, then this call's misses stored

@@ -74,6 +74,22 @@ def test_configuration_contact_counts_equal_the_loop(arm_name, scene):
     assert compiled.n_contacts(q.reshape(2, -1, arm.dof)).shape == (2, PATHS // 2)
 
 
+@pytest.mark.parametrize("backend", ["compiled", "loop"])
+def test_first_free_rows_are_the_full_checks_first_free_rows(backend):
+    arm = make_arm("anthropomorphic")
+    checker = _checker("anthropomorphic", "random_clutter", backend)
+    rng = np.random.default_rng(22)
+    q = rng.uniform(arm.joint_limits[:, 0], arm.joint_limits[:, 1], size=(400, arm.dof))
+    free = np.flatnonzero(~checker.collides(q))
+    assert 20 < len(free) < 380
+    for need in (1, 2, 5, len(free), len(free) + 3):
+        np.testing.assert_array_equal(checker.first_free_rows(q, need), free[:need])
+    if backend == "compiled":  # the rows after the need-th free one are not checked
+        before = checker._filter.counters[0]
+        checker.first_free_rows(q, 1)
+        assert checker._filter.counters[0] - before == free[0] + 1
+
+
 def test_milling_cell_transfers_equal_the_loop():
     arm = make_arm("anthropomorphic")
     model = build_model("anthropomorphic", "milling_cell")

@@ -14,7 +14,7 @@ def half_space(arm: Arm):
     configurations stay free)."""
     middle = arm.joint_limits[0].mean()
 
-    def is_free(q):
+    def is_free(q, need=None):
         return np.asarray(q)[..., 0] >= middle
 
     return is_free

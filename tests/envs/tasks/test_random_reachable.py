@@ -36,7 +36,7 @@ def test_a_scene_without_free_space_is_reported():
     arm = make_arm("cartesian")
     with pytest.raises(RuntimeError, match="collision-free"):
         generator(
-            arm, np.random.default_rng(0), 3, lambda q: np.zeros(len(q), dtype=bool), all_paths_free
+            arm, np.random.default_rng(0), 3, lambda q, need=None: np.zeros(len(q), dtype=bool), all_paths_free
         )
 
 

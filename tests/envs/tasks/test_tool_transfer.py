@@ -75,7 +75,7 @@ def test_tool_changes_cycle_above_slot_slot_above_slot_spindle():
 
 
 def test_tool_changes_start_collision_free():
-    def is_free(q):  # forbid every start but home
+    def is_free(q, need=None):  # forbid every start but home
         return np.all(np.asarray(q) == ARM.home, axis=-1)
 
     task = TASKS["tool_changes"](ARM, np.random.default_rng(4), 8, is_free, all_paths_free)
@@ -85,7 +85,7 @@ def test_tool_changes_start_collision_free():
 def test_tool_changes_poses_have_free_branches_in_the_milling_cell():
     checker = CollisionChecker(build_arm_model(ARM, "milling_cell"), dof=ARM.dof)
 
-    def is_free(q):
+    def is_free(q, need=None):
         return ~checker.collides(q)
 
     task = TASKS["tool_changes"](ARM, np.random.default_rng(0), 6, is_free, all_paths_free)

@@ -283,7 +283,7 @@ def test_quaternion_round_trip_to_rounding(tmp_path, suffix):
 
 def test_a_generated_task_written_and_read_back_is_the_same(tmp_path):
     arm = make_arm("anthropomorphic")
-    task = TASKS["helix"](arm, np.random.default_rng(11), 12, lambda q: np.ones(len(q), bool),
+    task = TASKS["helix"](arm, np.random.default_rng(11), 12, lambda q, need=None: np.ones(len(q), bool),
                           all_paths_free)
     for suffix in (".csv", ".json"):
         file = read_waypoints(write_waypoints(tmp_path / f"task{suffix}", task.poses))

@@ -1,0 +1,75 @@
+"""The multi-seed results of docs/results.md (``train/publish.py``): each row's committed
+model (its representative seed) plays its published held-out episodes again, and the
+published intervals follow from the stored per-episode numbers."""
+
+from __future__ import annotations
+
+import json
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from agents.evaluation import run_episode
+from agents.sb3 import SB3Policy
+from tests.train.test_results import judged_success
+from train.publish import MODELS, SWEEP_RESULTS
+
+AGGREGATE = SWEEP_RESULTS / "aggregate.json"
+#: Episodes replayed per model (of the 200 published): the first ones, in order.
+REPLAYED = 12
+
+
+def published_rows() -> list:
+    records = json.loads(AGGREGATE.read_text()) if AGGREGATE.exists() else {}
+    return [pytest.param(env_id, algo, id=f"{env_id}-{algo}")
+            for env_id, record in records.items()
+            for algo, row in record["policies"].items() if row.get("representative_seed")
+            is not None]
+
+
+def _trial(env_id: str, algo: str) -> dict:
+    return json.loads((SWEEP_RESULTS / env_id.split("/")[-1] / f"{algo}.json").read_text())
+
+
+def test_the_sweep_is_published_with_its_models():
+    records = json.loads(AGGREGATE.read_text())
+    assert records, "no published sweep"
+    for env_id, algo in ((p.values[0], p.values[1]) for p in published_rows()):
+        trial = _trial(env_id, algo)
+        assert (MODELS.parent / trial["model"]).exists()
+        row = records[env_id]["policies"][algo]
+        assert trial["seed"] in row["seeds"] and trial["seed"] == row["representative_seed"]
+        # The stored episodes give the stored summary (not computed from other episodes).
+        policy = trial["policy"]
+        assert len(policy["returns"]) == len(policy["successes"]) == records[env_id]["episodes"]
+        assert policy["success_rate"] == pytest.approx(np.mean(policy["successes"]), abs=1e-12)
+        assert policy["mean_return"] == pytest.approx(np.mean(policy["returns"]), abs=1e-9)
+        assert np.all(np.array(policy["returns"]) <= np.array(trial["oracle"]["returns"]) + 1e-9)
+
+
+@pytest.mark.regression
+@pytest.mark.parametrize(("env_id", "algo"), published_rows())
+def test_a_published_model_replays_its_first_episodes(env_id, algo, monkeypatch):
+    # A snapshot (the stored returns came from this code): a change in what the env, the
+    # checker or the model loader computes shows up here, bit for bit.
+    monkeypatch.chdir(MODELS.parent)
+    trial = _trial(env_id, algo)
+    env = gym.make(env_id, **trial["env_kwargs"])
+    policy = SB3Policy.load(trial["model"], env)
+    for e in range(REPLAYED):
+        episode = run_episode(policy, env, trial["task_seed"] + e)
+        assert episode.reward == trial["policy"]["returns"][e], e
+
+
+@pytest.mark.parametrize(("env_id", "algo"), published_rows())
+def test_a_published_models_successes_are_what_its_moves_achieve(env_id, algo, monkeypatch):
+    # Judged from the moves by a collision checker of its own (the loop backend, not the
+    # env's compiled one): the published per-episode successes must hold up.
+    monkeypatch.chdir(MODELS.parent)
+    trial = _trial(env_id, algo)
+    env = gym.make(env_id, **trial["env_kwargs"])
+    policy = SB3Policy.load(trial["model"], env)
+    judged = [judged_success(env, policy, trial["task_seed"] + e, "loop")
+              for e in range(REPLAYED)]
+    assert judged == trial["policy"]["successes"][:REPLAYED]
