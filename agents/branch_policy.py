@@ -134,6 +134,13 @@ class _BranchScores:
         if self.mlp_extractor.latent_dim_pi != self.features_extractor.features_dim:
             raise ValueError("BranchPolicy needs an empty actor net_arch (pi=[])")
         self.action_net = _FirstColumns(self.action_space.n)
+        if self.ortho_init:
+            # The scores are the action logits: initialise their read-out as SB3 does an
+            # action head (orthogonal, gain 0.01), not with the extractor's gain √2, so
+            # the initial policy is near uniform over the valid branches and explores.
+            score = self.features_extractor.score
+            nn.init.orthogonal_(score.weight, gain=0.01)
+            nn.init.zeros_(score.bias)
         # The optimiser was built over the replaced head's parameters: build it again.
         self.optimizer = self.optimizer_class(
             self.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs

@@ -10,6 +10,7 @@ import numpy as np
 
 from envs.kinematics import Arm
 
+
 class FreePredicate(Protocol):
     """Collision predicate the env hands to generators: (M, dof) -> (M,) bool, True =
     free. ``need``: the caller uses only the first ``need`` free rows, so rows after the

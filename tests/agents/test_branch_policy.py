@@ -100,3 +100,22 @@ def test_branch_policy_needs_its_extractor_and_an_empty_actor():
     with pytest.raises(ValueError, match="empty actor"):
         PPO(BranchPolicy, env, policy_kwargs=branch_policy_kwargs(
             env, net_arch={"pi": [8], "vf": [8]}))
+
+
+@pytest.mark.parametrize("env_id", ["IKBranch/Anthropomorphic-v2", "IKBranch/UR5e-v0"])
+def test_a_new_branch_policy_explores_every_valid_branch_alike(env_id):
+    # The scores are the logits: initialised like SB3's action head (gain 0.01), the first
+    # policy is near uniform over the valid branches, for K = 8 and for UR5e's K = 256.
+    env = gym.make(env_id)
+    obs, _ = env.reset(seed=0)
+    masks = env.unwrapped.action_masks()
+    model = MaskablePPO(MaskableBranchPolicy, env, seed=0, n_steps=64, batch_size=32,
+                        policy_kwargs=branch_policy_kwargs(env))
+    with torch.no_grad():
+        tensor, _ = model.policy.obs_to_tensor(obs)
+        distribution = model.policy.get_distribution(tensor, action_masks=masks)
+        probs = distribution.distribution.probs[0].numpy()
+    assert env.action_space.n == len(masks) and masks.sum() >= 2
+    assert probs[~masks].max(initial=0.0) == 0.0
+    valid = probs[masks]
+    assert valid.max() / valid.min() < 1.1, (valid.min(), valid.max())

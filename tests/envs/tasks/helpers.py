@@ -36,3 +36,13 @@ def assert_every_waypoint_has_a_free_branch(arm: Arm, task: Task, is_free) -> No
     free[valid] = is_free(candidates[valid])
     assert free.any(axis=-1).all()
     assert task.start.shape == (arm.dof,) and np.all(is_free(task.start[None]))
+
+
+def everywhere_free(q, need=None):
+    """A free predicate for an empty scene."""
+    return np.ones(len(q), dtype=bool)
+
+
+def nowhere_free(q, need=None):
+    """A free predicate for a scene with no room at all."""
+    return np.zeros(len(q), dtype=bool)

@@ -12,6 +12,7 @@ from tests.envs.tasks.helpers import (
     assert_every_waypoint_has_a_free_branch,
     assert_same_task,
     half_space,
+    nowhere_free,
 )
 
 generator = TASKS["random"]
@@ -36,7 +37,7 @@ def test_a_scene_without_free_space_is_reported():
     arm = make_arm("cartesian")
     with pytest.raises(RuntimeError, match="collision-free"):
         generator(
-            arm, np.random.default_rng(0), 3, lambda q, need=None: np.zeros(len(q), dtype=bool), all_paths_free
+            arm, np.random.default_rng(0), 3, nowhere_free, all_paths_free
         )
 
 

@@ -11,14 +11,14 @@ import envs  # noqa: F401
 from agents import make_baseline
 from envs.kinematics import make_arm
 from envs.tasks import TASKS
-from tests.envs.tasks.helpers import all_paths_free
+from tests.envs.tasks.helpers import all_paths_free, everywhere_free
 
 
 def test_waypoints_turn_about_one_fixed_axis_by_a_constant_step():
     arm = make_arm("abb_irb2600")
     rng = np.random.default_rng(0)
     for _ in range(20):
-        task = TASKS["screwing"](arm, rng, 8, lambda q, need=None: np.ones(len(q), bool), all_paths_free)
+        task = TASKS["screwing"](arm, rng, 8, everywhere_free, all_paths_free)
         poses = task.poses
         assert task.free_start and task.n_waypoints == 8
         np.testing.assert_allclose(poses[:, :3, 3], poses[:1, :3, 3].repeat(8, 0), atol=1e-12)

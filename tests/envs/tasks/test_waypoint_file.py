@@ -23,7 +23,7 @@ from envs.tasks.waypoint_file import (
     read_waypoints,
     write_waypoints,
 )
-from tests.envs.tasks.helpers import all_paths_free
+from tests.envs.tasks.helpers import all_paths_free, everywhere_free
 
 MATRIX_HEADER = "x,y,z,r11,r12,r13,r21,r22,r23,r31,r32,r33"
 QUAT_HEADER = "x,y,z,qw,qx,qy,qz"
@@ -283,7 +283,7 @@ def test_quaternion_round_trip_to_rounding(tmp_path, suffix):
 
 def test_a_generated_task_written_and_read_back_is_the_same(tmp_path):
     arm = make_arm("anthropomorphic")
-    task = TASKS["helix"](arm, np.random.default_rng(11), 12, lambda q, need=None: np.ones(len(q), bool),
+    task = TASKS["helix"](arm, np.random.default_rng(11), 12, everywhere_free,
                           all_paths_free)
     for suffix in (".csv", ".json"):
         file = read_waypoints(write_waypoints(tmp_path / f"task{suffix}", task.poses))
