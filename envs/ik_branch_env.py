@@ -39,6 +39,28 @@ def _integer(value, name: str, minimum: int) -> int:
     return int(value)
 
 
+def _check_choices(arm: str, scene: str, task: str, render_mode: str | None) -> None:
+    """``ValueError`` for a name the env does not know."""
+    for what, value, known in (("arm", arm, ARM_NAMES), ("scene", scene, SCENES),
+                               ("task", task, TASKS)):
+        if value not in known:
+            raise ValueError(f"unknown {what} {value!r}; choose one of {', '.join(known)}")
+    if render_mode not in (None, *IKBranchEnv.metadata["render_modes"]):
+        raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+
+
+def _check_numbers(collision_penalty: float, invalid_penalty: float,
+                   collision_resolution: float, width: int, height: int) -> None:
+    for name, value in (("collision_penalty", collision_penalty),
+                        ("invalid_penalty", invalid_penalty)):
+        if not np.isfinite(value) or value < 0:
+            raise ValueError(f"{name} must be a finite number >= 0, got {value}")
+    if not collision_resolution > 0:
+        raise ValueError(f"collision_resolution must be positive, got {collision_resolution}")
+    if width < 1 or height < 1:
+        raise ValueError("width and height must be positive")
+
+
 class IKBranchEnv(gym.Env):
     """Move an industrial arm through waypoints by choosing, at each one, an IK branch.
 
@@ -121,7 +143,8 @@ class IKBranchEnv(gym.Env):
     joint_weights         None                    per-joint travel weights (None: all 1)
     joint_speeds          None                    per-joint speed limits (None: 1.5 rad/s, 0.5 m/s)
     collision_resolution  0.01                    path-check clearance and step (m)
-    scene_seed            0                       random-clutter seed (None: new every reset)
+    scene_seed            0                       random-clutter seed (None: new every reset;
+                                                  other scenes ignore it)
     scene_seeds           None                    [lo, hi) of those (None: the training range)
     arm_params            None                    dict of arm parameters (``make_arm``)
     observation           "compact"               "compact" (O(K)) or "ladder" (O(K²), v0/v1)
@@ -199,16 +222,60 @@ class IKBranchEnv(gym.Env):
         self._kwargs = {
             key: value for key, value in locals().items() if key not in ("self", "__class__")
         }
-        if arm not in ARM_NAMES:
-            raise ValueError(f"unknown arm {arm!r}; choose one of {', '.join(ARM_NAMES)}")
-        if scene not in SCENES:
-            raise ValueError(f"unknown scene {scene!r}; choose one of {', '.join(SCENES)}")
-        if task not in TASKS:
-            raise ValueError(f"unknown task {task!r}; choose one of {', '.join(TASKS)}")
-        if render_mode not in (None, *self.metadata["render_modes"]):
-            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        _check_choices(arm, scene, task, render_mode)
+        _check_numbers(collision_penalty, invalid_penalty, collision_resolution, width, height)
         self.arm = make_arm(arm, **(arm_params or {}))
         self.tool = None if tool is None else Tool.from_spec(tool)
+        self.render_mode, self.scene = render_mode, scene
+        self.lookahead = _integer(lookahead, "lookahead", 0)
+        scene_kwargs = self._place_arm(scene, scene_file, scene_options)
+        self._generator = self._task_generator(task, task_file, task_start, task_points_abc)
+        self._generator.check_arm(self._task_arm, scene)
+        self.n_waypoints = self._waypoint_count(task, n_waypoints)
+        draws_scenes = self._scene_seeds(scene, scene_seed, scene_seeds)
+        if scene == "random_clutter":
+            scene_kwargs = {"seed": scene_seed}
+        self.model = build_arm_model(self.arm, scene, tool=self.tool, **scene_kwargs)
+        #: The per-episode clutter's obstacle slots (``scene_seed=None``), else None.
+        self._clutter = ClutterSlots(self.model, CLUTTER_SLOTS) if draws_scenes else None
+        #: The seed of the clutter standing now (None: the scene is fixed).
+        self.scene_seed: int | None = None
+        checker = CollisionChecker(self.model, dof=self.arm.dof, resolution=collision_resolution)
+        cost = TransitionCost.for_arm(
+            self.arm, travel_weight=travel_weight, time_weight=time_weight,
+            prismatic_scale=prismatic_scale, joint_weights=joint_weights,
+            joint_speeds=joint_speeds,
+        )
+        #: Prices every move (shared with planners and baselines; owns the caches).
+        self.pricer = MovePricer(
+            self.arm, checker, cost, collision_penalty=collision_penalty,
+            invalid_penalty=invalid_penalty, terminate_on_collision=terminate_on_collision,
+        )
+        self._observations = ObservationBuilder(
+            self.arm, self.lookahead, self.pricer.travel_scale, observation
+        )
+        self.observation_layout = self._observations.layout
+        self.observation_space = spaces.Box(
+            -1.0, 1.0, shape=(self._observations.size,), dtype=np.float32
+        )
+        self.action_space = spaces.Discrete(self.arm.n_branches)
+        self._renderer = None
+        self._moves_key: tuple | None = None
+        self._moves_cache: dict[str, np.ndarray] = {}
+
+        self.task: Task | None = None
+        #: The current task's ladder (candidates and prices), None before ``reset``.
+        self.ladder: TaskMoves | None = None
+        self.q = self.arm.home.copy()
+        self.index = 0
+        self.episode_collided = self.episode_invalid = False
+
+    # -------------------------------------------------------------- construction steps
+    def _place_arm(self, scene: str, scene_file: str | None,
+                   scene_options: dict[str, Any] | None) -> dict[str, Any]:
+        """Check the scene's file and options, set ``scene_file`` (the loaded file or
+        None), ``task_frame`` and the arm tasks speak to; returns the scene builder's
+        keyword arguments (``random_clutter``'s seed is added by the caller)."""
         if (scene == "file") != (scene_file is not None):
             raise ValueError("scene='file' and scene_file=PATH go together")
         if scene_options is not None and scene not in SCENE_OPTIONS:
@@ -230,92 +297,41 @@ class IKBranchEnv(gym.Env):
                                     None if self.tool is None else self.tool.tcp)
         self._task_arm = (self.arm if self.task_frame.identity
                           else FramedArm(self.arm, self.task_frame))
+        if scene == "file":
+            return {"scene_file": scene_file, **options}
+        return options if scene == "milling_cell" else {}
+
+    def _task_generator(self, task: str, task_file: str | None, task_start, task_points_abc):
         if (task == "file") != (task_file is not None):
             raise ValueError("task='file' and task_file=PATH go together")
         if task == "file":
-            self._generator = self._file_task(task_file, task_start, task_points_abc)
-        elif task_start is not None or task_points_abc is not None:
+            return self._file_task(task_file, task_start, task_points_abc)
+        if task_start is not None or task_points_abc is not None:
             raise ValueError("task_start and task_points_abc are for task='file'")
-        else:
-            self._generator = TASKS[task]
-        self._generator.check_arm(self._task_arm, scene)
-        self.n_waypoints = _integer(
-            self._generator.default_waypoints if n_waypoints is None else n_waypoints,
-            "n_waypoints", 1,
-        )
-        if getattr(self._generator, "fixed_waypoints", False) and (
-            self.n_waypoints != self._generator.default_waypoints
-        ):
-            raise ValueError(
-                f"task {task!r} has exactly {self._generator.default_waypoints} waypoints, "
-                f"got n_waypoints={n_waypoints!r}"
-            )
-        lookahead = _integer(lookahead, "lookahead", 0)
+        return TASKS[task]
+
+    def _waypoint_count(self, task: str, n_waypoints: int | None) -> int:
+        generator = self._generator
+        count = _integer(generator.default_waypoints if n_waypoints is None else n_waypoints,
+                         "n_waypoints", 1)
+        if getattr(generator, "fixed_waypoints", False) and count != generator.default_waypoints:
+            raise ValueError(f"task {task!r} has exactly {generator.default_waypoints} "
+                             f"waypoints, got n_waypoints={n_waypoints!r}")
+        return count
+
+    def _scene_seeds(self, scene: str, scene_seed: int | None,
+                     scene_seeds: list[int] | None) -> bool:
+        """Check the clutter seed arguments, set ``scene_seeds``; True when a new clutter
+        is drawn at every reset. Scenes without clutter take any ``scene_seed`` (an id
+        that draws clutter may be asked for another scene) and ignore it."""
         if scene_seed is not None:
-            scene_seed = _integer(scene_seed, "scene_seed", 0)
-        elif scene != "random_clutter":
-            raise ValueError(f"scene_seed=None draws random clutter; scene {scene!r} has none")
+            _integer(scene_seed, "scene_seed", 0)
         seeds = TRAIN_SCENES if scene_seeds is None else tuple(scene_seeds)
         if len(seeds) != 2 or not 0 <= _integer(seeds[0], "scene_seeds[0]", 0) < _integer(
                 seeds[1], "scene_seeds[1]", 1):
             raise ValueError(f"scene_seeds must be [lo, hi) with 0 <= lo < hi, got {scene_seeds!r}")
         self.scene_seeds = (int(seeds[0]), int(seeds[1]))
-        for name, value in (("collision_penalty", collision_penalty),
-                            ("invalid_penalty", invalid_penalty)):
-            if not np.isfinite(value) or value < 0:
-                raise ValueError(f"{name} must be a finite number >= 0, got {value}")
-        if not collision_resolution > 0:
-            raise ValueError(f"collision_resolution must be positive, got {collision_resolution}")
-        if width < 1 or height < 1:
-            raise ValueError("width and height must be positive")
-        self.lookahead = lookahead
-        cost = TransitionCost.for_arm(
-            self.arm,
-            travel_weight=travel_weight,
-            time_weight=time_weight,
-            prismatic_scale=prismatic_scale,
-            joint_weights=joint_weights,
-            joint_speeds=joint_speeds,
-        )
-        self.render_mode = render_mode
-        self.scene = scene
-        scene_kwargs = {"seed": scene_seed} if scene == "random_clutter" else {}
-        if scene == "file":
-            scene_kwargs = {"scene_file": scene_file, **options}
-        elif scene == "milling_cell":
-            scene_kwargs = options
-        self.model = build_arm_model(self.arm, scene, tool=self.tool, **scene_kwargs)
-        #: The per-episode clutter's obstacle slots (``scene_seed=None``), else None.
-        self._clutter = ClutterSlots(self.model, CLUTTER_SLOTS) if (
-            scene == "random_clutter" and scene_seed is None) else None
-        #: The seed of the clutter standing now (None: the scene is fixed).
-        self.scene_seed: int | None = None
-        checker = CollisionChecker(self.model, dof=self.arm.dof, resolution=collision_resolution)
-        #: Prices every move (shared with planners and baselines; owns the caches).
-        self.pricer = MovePricer(
-            self.arm, checker, cost,
-            collision_penalty=collision_penalty,
-            invalid_penalty=invalid_penalty,
-            terminate_on_collision=terminate_on_collision,
-        )
-        self._observations = ObservationBuilder(
-            self.arm, lookahead, self.pricer.travel_scale, observation
-        )
-        self.observation_layout = self._observations.layout
-        self.observation_space = spaces.Box(
-            -1.0, 1.0, shape=(self._observations.size,), dtype=np.float32
-        )
-        self.action_space = spaces.Discrete(self.arm.n_branches)
-        self._renderer = None
-        self._moves_key: tuple | None = None
-        self._moves_cache: dict[str, np.ndarray] = {}
-
-        self.task: Task | None = None
-        #: The current task's ladder (candidates and prices), None before ``reset``.
-        self.ladder: TaskMoves | None = None
-        self.q = self.arm.home.copy()
-        self.index = 0
-        self.episode_collided = self.episode_invalid = False
+        return scene == "random_clutter" and scene_seed is None
 
     def _file_task(self, path: str, start, abc) -> FileTask:
         """The task of a waypoint file: poses in the cell frame when a scene file gives one

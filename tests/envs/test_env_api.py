@@ -142,3 +142,14 @@ def test_rgb_array_render_shows_a_real_frame(env_id):
     plain = make(env_id)
     plain.reset(seed=0)
     assert plain.render() is None  # no render mode: nothing drawn
+
+
+def test_an_id_that_draws_clutter_takes_another_scene():
+    # Anthropomorphic-v2 registers scene_seed=None (a new clutter per episode); asked for a
+    # scene without clutter it builds that scene, and the seed has nothing to draw.
+    env = gym.make("IKBranch/Anthropomorphic-v2", scene="empty")
+    obs, info = env.reset(seed=0)
+    base = env.unwrapped
+    assert base._clutter is None and "scene_seed" not in info
+    assert not any(base.model.geom(g).name.startswith("clutter") for g in range(base.model.ngeom))
+    assert env.observation_space.contains(obs)
