@@ -32,13 +32,14 @@ from typing import Any
 
 import numpy as np
 
+from agents import DPOracle, PaperRule, RandomBranch, RecedingDP
 from train.sweep import ROOT, env_name
 
 #: Bootstrap resamples for every interval.
 REPS = 2000
-ORACLE, RANDOM = "dp_oracle", "random"
+ORACLE, RANDOM = DPOracle.name, RandomBranch.name
 #: What learned policies are compared with (probability of improvement).
-RIVALS = ("paper_rule", "receding_dp")
+RIVALS = (PaperRule.name, RecedingDP.name)
 
 
 def _estimate(scores: dict[str, Any], func, seed: int = 0) -> dict[str, tuple[float, float, float]]:

@@ -49,11 +49,13 @@ from typing import Any
 
 import numpy as np
 
+from agents import BASELINES
+from agents.evaluation import ORACLE
+
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_UNSAFE = 0, 1, 2, 3
-ORACLE = "dp_oracle"
-#: The planner names ``--planner`` takes besides ``MODEL.zip`` (``agents.BASELINES``;
-#: ``receding_dp:H``, ``fixed:BRANCH``, ``random:SEED`` take an argument).
-PLANNERS = ("dp_oracle", "receding_dp", "paper_rule", "paper_pair_rule", "random", "fixed")
+#: The planner names ``--planner`` takes besides ``MODEL.zip``: the baselines
+#: (``receding_dp:H``, ``fixed:BRANCH``, ``random:SEED`` take an argument).
+PLANNERS = tuple(BASELINES)
 #: Env arguments ``--env-kwargs`` may not set: they have options of their own (or are
 #: fixed by the command).
 RESERVED_ENV_KWARGS = ("arm", "arm_params", "scene", "scene_file", "scene_options", "task",

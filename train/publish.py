@@ -24,13 +24,14 @@ import shutil
 from pathlib import Path
 from typing import Any
 
+from train.aggregate import RIVALS
 from train.sweep import env_name, run_dir
 
 ROOT = Path(__file__).resolve().parent.parent
 SWEEP_RESULTS = ROOT / "docs" / "results" / "sweep"
 MODELS = ROOT / "models"
 #: The learned policies' rivals in the goal checks (issue 14).
-PAPER_RULE, RECEDING_DP = "paper_rule", "receding_dp"
+PAPER_RULE, RECEDING_DP = RIVALS
 #: Ids whose goal is success ≥ 99 % and an IQM gap ≤ 2 % on held-out scenes.
 HEADLINE_GOALS = ("IKBranch/ToolTransfer-v1", "IKBranch/Anthropomorphic-v2")
 
