@@ -66,6 +66,18 @@ ENV_SPECS.update({
     # Industrial arms (issue 12): their real limits, every turn branch.
     "IKBranch/KukaKR6-v0": {"arm": "kuka_kr6_r700", **_CLUTTER},
     "IKBranch/UR5e-v0": {"arm": "ur5e", **_CLUTTER},
+    # The milling cell's tool changes with a real arm: an IRB 4600 (j4, j6 ±400°: 72
+    # branches) placed between rack and mill, holding the tool in a gripper (0.17 m from
+    # the flange to the grip, the tool across it, as the worked example's arm holds it).
+    "IKBranch/IRB4600ToolTransfer-v0": {
+        "arm": "abb_irb4600", "scene": "milling_cell", "task": "tool_changes", **_COMPACT,
+        "scene_options": {"base_pos": [-1.0, 0.3, 0.0]},
+        "tool": {"parts": [{"shape": "box", "size": [0.1, 0.1, 0.15]},
+                           {"shape": "cylinder", "size": [0.025, 0.35],
+                            "offset": {"pos": [0.0, 0.0, 0.17],
+                                       "rpy": [-1.5707963267948966, 0.0, 0.0]}}],
+                 "tcp": {"pos": [0.0, 0.0, 0.17]}},
+    },
     # Unwinding: a nut runner whose last joint (±400°) must be turned the right way.
     "IKBranch/IRB2600Screwing-v0": {
         "arm": "abb_irb2600", "scene": "empty", "task": "screwing", **_COMPACT,

@@ -162,8 +162,10 @@ class IKBranchEnv(gym.Env):
     ## Version history
     - The current generation: Cartesian, Cylindrical, Spherical, Anthropomorphic,
       Cylindrical4 **-v2**, ToolTransfer **-v1**, DualRRPRPP, DualRRRPPP, DualPPRPRR **-v1**,
-      RodMechanism **-v2**, and the industrial arms KukaKR6 **-v0**, UR5e **-v0**: the
-      compact observation (O(K): least travel into and out of each branch instead of K × K
+      RodMechanism **-v2**, and the industrial arms (real limits, every turn branch)
+      KukaKR6 **-v0**, UR5e **-v0** (random clutter), IRB4600ToolTransfer **-v0** (the
+      milling cell's tool changes, a gripper holding the tool) and IRB2600Screwing **-v0**
+      (a nut runner whose j6 must unwind): the compact observation (O(K): least travel into and out of each branch instead of K × K
       travel blocks); the random-clutter ids draw a new clutter at every reset
       (``scene_seed=None``, seeds from ``scene_seeds``, training and held-out ranges in
       ``envs/seeds.py``; obstacles are primitive boxes and capsules, moved without a

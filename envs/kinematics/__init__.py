@@ -9,6 +9,8 @@ Contract (``arm.Arm``; every arm is held to it by ``tests/envs/kinematics/test_a
 
 from __future__ import annotations
 
+from typing import Any
+
 from .anthropomorphic import AnthropomorphicArm
 from .arm import LIMIT_TOL, Arm
 from .cartesian import CartesianArm
@@ -51,7 +53,7 @@ SEED_ARM_NAMES: tuple[str, ...] = ARM_NAMES[:9]
 INDUSTRIAL_ARM_NAMES: tuple[str, ...] = ARM_NAMES[9:]
 
 
-def make_arm(name: str, **params) -> Arm:
+def make_arm(name: str, **params: Any) -> Arm:
     """The arm ``name`` with its documented defaults, overridden by ``params``."""
     try:
         cls = _ARM_CLASSES[name]

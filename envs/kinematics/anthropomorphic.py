@@ -18,12 +18,12 @@ With the wrist centre on the Z0 axis φ1 is free: it is set to 0 (front) and π 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
 
-from .arm import REVOLUTE, Arm
+from .arm import REVOLUTE, Arm, array_default
 from .rotations import homogeneous, rot_x, rot_z
 from .wrist import put_wrist_rows, with_positioning, wrist_branches, wrist_rotation
 
@@ -61,16 +61,18 @@ class AnthropomorphicArm(Arm):
     #: ranges); the shoulder may reach back over the base (the paper's φ1 + 180° family
     #: needs φ2 up to ~−200°+360°); the wrist bend φ5 is limited to ±135°, a typical
     #: industrial wrist pitch range that still admits the worked example's ±105.81°.
-    joint_limits: np.ndarray = (
+    joint_limits: np.ndarray = field(default_factory=array_default((
         (-np.pi, np.pi),
         (-np.pi, np.pi),
         (-170 * _DEG, 170 * _DEG),
         (-np.pi, np.pi),
         (-135 * _DEG, 135 * _DEG),
         (-np.pi, np.pi),
-    )
+    )))
     #: Upper arm raised 30°, forearm level, wrist bent 45°: clear of the floor, no singularity.
-    home: np.ndarray = (0.0, 30 * _DEG, -30 * _DEG, 0.0, 45 * _DEG, 0.0)
+    home: np.ndarray = field(
+        default_factory=array_default((0.0, 30 * _DEG, -30 * _DEG, 0.0, 45 * _DEG, 0.0))
+    )
 
     def _check_parameters(self) -> None:
         for label in ("l1", "l2", "l3"):
@@ -86,7 +88,7 @@ class AnthropomorphicArm(Arm):
         rotation = rot_z(phi1) @ rot_x(phi23) @ wrist_rotation(q[..., 3], q[..., 4], q[..., 5])
         return homogeneous(rotation, position)
 
-    def _ik_candidates(self, pose: np.ndarray) -> np.ndarray:
+    def _ik_candidates(self, pose: np.ndarray) -> list[np.ndarray]:
         # Trigonometry is the cost on big batches: cos/sin of φ1, φ3 and φ2 + φ3 come from
         # the geometry (normalised vectors) instead of np.cos/np.sin of the angles.
         x, y, z = pose[..., 0, 3], pose[..., 1, 3], pose[..., 2, 3]
@@ -155,7 +157,7 @@ _SHOULDER_TURN = np.array([0.0, np.pi])
 _ELBOW_SIGN = np.array([[-1.0, 1.0], [1.0, -1.0]])
 
 
-def _anthropomorphic_kernel(m, p, out) -> None:
+def _anthropomorphic_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
     """``AnthropomorphicArm._ik_candidates`` for one pose, formula for formula, on floats
     (the compiled single-pose path, ``envs/kinematics/compiled.py``)."""
     l1, l2, l3 = p[0], p[1], p[2]

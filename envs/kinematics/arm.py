@@ -29,9 +29,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, fields
 from functools import cached_property
 from itertools import product
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .rotations import ORTHONORMAL_TOL, as_float_array, validate_rotation, wrap_angle
 
@@ -58,6 +59,21 @@ _WINDOW_COUNT_TOL = 1e-9
 # How ``_checked_candidates`` (and the compiled single-pose path) treat each joint.
 LINEAR, WRAPPED_FULL, WRAPPED, TURNS = 0, 1, 2, 3
 
+#: A scalar kernel ``kernel(m, params, out)`` (``Arm._kernel``): writes the closed-form rows
+#: of the (4, 4) pose ``m`` into ``out`` (Kc, dof).
+Kernel = Callable[[np.ndarray, np.ndarray, np.ndarray], None]
+#: ``pose (4, 4) -> (Q (K, dof), ok (K,))``, the compiled single-pose path of one arm.
+SinglePoseSolver = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+
+
+def array_default(values: ArrayLike) -> Callable[[], np.ndarray]:
+    """The ``default_factory`` of an arm's ``joint_limits`` or ``home`` field: ``values``
+    (the module's frozen tuple of floats) as a new float64 array.
+
+    A dataclass refuses an array as a plain default (arrays are unhashable); the field holds
+    an array either way once ``Arm.__post_init__`` has validated it and made it read-only."""
+    return lambda: np.array(values, dtype=np.float64)
+
 
 @dataclass(frozen=True, eq=False)
 class Arm(ABC):
@@ -82,9 +98,11 @@ class Arm(ABC):
     #: ``envs/kinematics/compiled.py``): ``kernel(m, params, out)`` writes the closed-form
     #: rows of the (4, 4) float array ``m`` into ``out`` (Kc, dof), which arrives NaN;
     #: ``params`` is ``_kernel_parameters()``. Plain Python on floats and ``math``.
-    _kernel: ClassVar[Callable | None] = None
+    _kernel: ClassVar[Kernel | None] = None
 
+    #: Given as any (dof, 2) array-like; stored as a read-only float64 array.
     joint_limits: np.ndarray
+    #: Given as any (dof,) array-like; stored as a read-only float64 array.
     home: np.ndarray
 
     def __post_init__(self) -> None:
@@ -188,14 +206,14 @@ class Arm(ABC):
         turns.flags.writeable = False
         return turns
 
-    def fk(self, q) -> np.ndarray:
+    def fk(self, q: ArrayLike) -> np.ndarray:
         """Pose (…, 4, 4) of the output frame for joint values ``q`` (…, dof)."""
         q = as_float_array(q, "q")
         if q.ndim < 1 or q.shape[-1] != self.dof:
             raise ValueError(f"q must have shape (..., {self.dof}) for {self.name}, got {q.shape}")
         return self._fk(q)
 
-    def ik(self, pose) -> tuple[np.ndarray, np.ndarray]:
+    def ik(self, pose: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Every closed-form solution for ``pose`` (…, 4, 4), with every turn it allows.
 
         Returns ``Q`` (…, K, dof) in the fixed order of ``branch_labels`` and ``ok`` (…, K):
@@ -211,7 +229,7 @@ class Arm(ABC):
                 return single(pose)
         return self.ik_batched(pose)
 
-    def ik_batched(self, pose) -> tuple[np.ndarray, np.ndarray]:
+    def ik_batched(self, pose: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """``ik`` through the pure-numpy solver for any batch shape (the reference)."""
         pose = as_float_array(pose, "pose")
         if pose.ndim < 2 or pose.shape[-2:] != (4, 4):
@@ -235,7 +253,7 @@ class Arm(ABC):
         shape = (*batch_shape, self.n_branches)
         return candidates.reshape((*shape, self.dof)), ok.reshape(shape)
 
-    def reaches(self, pose) -> np.ndarray:
+    def reaches(self, pose: ArrayLike) -> np.ndarray:
         """(…,) bool: some closed-form branch exists for ``pose`` (…, 4, 4), the joint
         limits aside: where ``ik`` finds no valid branch, this tells "out of reach" (False)
         from "outside the joint limits" (True)."""
@@ -250,7 +268,7 @@ class Arm(ABC):
         exists = np.all([np.isfinite(np.asarray(c)) for c in columns], axis=0).any(axis=-1)
         return exists.reshape(pose.shape[:-2])
 
-    def within_limits(self, q) -> np.ndarray:
+    def within_limits(self, q: ArrayLike) -> np.ndarray:
         """(…,) bool: every joint of ``q`` (…, dof) inside its limits (with ``LIMIT_TOL``)."""
         q = np.asarray(q, dtype=np.float64)
         lower, upper = self.joint_limits[:, 0], self.joint_limits[:, 1]
@@ -277,7 +295,9 @@ class Arm(ABC):
     def _n_turn_combinations(self) -> int:
         return math.prod(slots for _, _, _, slots in self._joint_modes)
 
-    def _checked_candidates(self, pose: np.ndarray, out=None):
+    def _checked_candidates(
+        self, pose: np.ndarray, out: tuple[np.ndarray, np.ndarray] | None = None
+    ) -> tuple[np.ndarray, np.ndarray] | None:
         """(candidates (…, K, dof), ok (…, K)) for a chunk; with turn windows and ``out``
         (two arrays of those shapes) they are written there and None is returned."""
         with np.errstate(invalid="ignore"):
@@ -286,7 +306,9 @@ class Arm(ABC):
                 raw = [raw[..., joint] for joint in range(self.dof)]
             # Joint by joint on (…, Kc) columns: wrapping and limit checks on the stacked
             # (…, K, dof) array would pass over a short strided axis, slowly.
-            columns, ok, turned = [], None, []
+            columns: list[np.ndarray] = []
+            ok: np.ndarray | None = None
+            turned: list[np.ndarray] = []
             for values, (mode, lower, upper, slots) in zip(raw, self._joint_modes, strict=True):
                 if mode == TURNS:
                     values = turn_representatives(values, lower, slots)
@@ -302,12 +324,20 @@ class Arm(ABC):
                 else:
                     ok = inside if ok is None else ok & inside
         if not turned:
+            # Every joint has one window here, so each of the (dof ≥ 1) joints set ``ok``.
+            assert ok is not None
             candidates = np.stack(columns, axis=-1)
             candidates[~ok] = np.nan
             return candidates, ok
         return self._expand_turns(columns, ok, turned, out)
 
-    def _expand_turns(self, columns, ok, turned, out=None):
+    def _expand_turns(
+        self,
+        columns: list[np.ndarray],
+        ok: np.ndarray | None,
+        turned: list[np.ndarray],
+        out: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> tuple[np.ndarray, np.ndarray] | None:
         """Every branch from (…, Kc) columns and the (…, Kc, windows) columns of turned
         joints: branch k takes closed-form row k // T and, for each turned joint, the
         window its index names (first turned joint slowest), by one gather per joint."""
@@ -316,7 +346,7 @@ class Arm(ABC):
         lead = np.broadcast_shapes(ok.shape, *(inside.shape[:-1] for inside in turned))
         batch = lead[:-1]
         given = out is not None
-        if not given:
+        if out is None:
             out = (np.empty((*batch, self.n_branches, self.dof)),
                    np.empty((*batch, self.n_branches), dtype=bool))
         candidates, valid = out
@@ -349,12 +379,12 @@ class Arm(ABC):
 
     # ------------------------------------------------------------- compiled single pose
     @cached_property
-    def _single_pose_solver(self) -> Callable | None:
+    def _single_pose_solver(self) -> SinglePoseSolver | None:
         from .compiled import single_pose_solver
 
         return single_pose_solver(self)
 
-    def __getstate__(self) -> dict:
+    def __getstate__(self) -> dict[str, Any]:
         # The compiled solver is a closure (not picklable) and cheap to rebuild.
         state = self.__dict__.copy()
         state.pop("_single_pose_solver", None)

@@ -10,12 +10,12 @@ Branches (2): wrist + / − (sign of φ2, the paper's φ2 = ±arccos n22).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
 
-from .arm import PRISMATIC, REVOLUTE, Arm
+from .arm import PRISMATIC, REVOLUTE, Arm, array_default
 from .rotations import homogeneous
 from .wrist import put_wrist_rows, solve_with_wrist, wrist_rotation
 
@@ -33,24 +33,24 @@ class CartesianArm(Arm):
     joint_types: ClassVar[tuple[str, ...]] = (PRISMATIC,) * 3 + (REVOLUTE,) * 3
     closed_form_labels: ClassVar[tuple[str, ...]] = ("wrist+", "wrist-")
 
-    joint_limits: np.ndarray = (
+    joint_limits: np.ndarray = field(default_factory=array_default((
         (-1.0, 1.0),
         (-1.0, 1.0),
         (0.2, 1.5),
         (-np.pi, np.pi),
         (-135 * _DEG, 135 * _DEG),
         (-np.pi, np.pi),
-    )
-    home: np.ndarray = (0.0, 0.0, 1.0, 0.0, 45 * _DEG, 0.0)
+    )))
+    home: np.ndarray = field(default_factory=array_default((0.0, 0.0, 1.0, 0.0, 45 * _DEG, 0.0)))
 
     def _fk(self, q: np.ndarray) -> np.ndarray:
         return homogeneous(wrist_rotation(q[..., 3], q[..., 4], q[..., 5]), q[..., :3])
 
-    def _ik_candidates(self, pose: np.ndarray) -> np.ndarray:
+    def _ik_candidates(self, pose: np.ndarray) -> list[np.ndarray]:
         return solve_with_wrist(pose[..., None, :3, 3], pose[..., None, :3, :3])
 
 
-def _cartesian_kernel(m, p, out) -> None:
+def _cartesian_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
     """``CartesianArm._ik_candidates`` for one pose (``envs/kinematics/compiled.py``)."""
     put_wrist_rows(out, 0, m[0, 3], m[1, 3], m[2, 3],
                    m[0, 0], m[0, 1], m[0, 2], m[1, 1], m[2, 0], m[2, 1], m[2, 2])

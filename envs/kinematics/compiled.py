@@ -33,10 +33,11 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable
+from types import ModuleType
 
 import numpy as np
 
-from .arm import LIMIT_TOL, LINEAR, TURNS, TWO_PI, WRAPPED_FULL, Arm
+from .arm import LIMIT_TOL, LINEAR, TURNS, TWO_PI, WRAPPED_FULL, Arm, Kernel, SinglePoseSolver
 from .rotations import ORTHONORMAL_TOL
 
 #: ``pose_status`` codes -> the messages the numpy path raises for the same input.
@@ -48,7 +49,7 @@ STATUS_MESSAGES = {
 }
 
 
-def pose_status(m, check_rotation) -> int:
+def pose_status(m: np.ndarray, check_rotation: bool) -> int:
     """0 if the (4, 4) array ``m`` is a valid target, else a ``STATUS_MESSAGES`` code.
 
     The checks of ``as_float_array``, ``Arm.ik_batched`` and ``validate_rotation``, in that
@@ -80,7 +81,15 @@ def pose_status(m, check_rotation) -> int:
     return 0
 
 
-def finish_rows(raw, modes, lower, upper, slots, q, ok) -> None:
+def finish_rows(
+    raw: np.ndarray,
+    modes: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    slots: np.ndarray,
+    q: np.ndarray,
+    ok: np.ndarray,
+) -> None:
     """``Arm._checked_candidates`` for one pose: raw closed-form rows (Kc, dof) -> every
     branch's row ``q`` (K, dof) and ``ok`` (K,), K = Kc × Π slots (last joint fastest).
 
@@ -139,7 +148,7 @@ def kernel_helpers() -> tuple[Callable, ...]:
 
 
 @functools.cache
-def _numba():
+def _numba() -> ModuleType | None:
     try:
         import numba
     except ImportError:  # the numpy path answers every pose, only slower
@@ -152,13 +161,14 @@ def _numba():
 
 
 @functools.cache
-def _shared():
+def _shared() -> tuple[Callable, Callable]:
     numba = _numba()
+    assert numba is not None  # only ``_driver`` calls this, once numba has imported
     return numba.njit(pose_status), numba.njit(finish_rows)
 
 
 @functools.cache
-def _driver(kernel: Callable) -> Callable | None:
+def _driver(kernel: Kernel) -> Callable | None:
     """The compiled single-pose solver around ``kernel`` (one per kernel function)."""
     numba = _numba()
     if numba is None:
@@ -167,7 +177,18 @@ def _driver(kernel: Callable) -> Callable | None:
     solve_rows = numba.njit(kernel)
 
     @numba.njit
-    def drive(m, params, kc, dof, k, check_rotation, modes, lower, upper, slots):
+    def drive(
+        m: np.ndarray,
+        params: np.ndarray,
+        kc: int,
+        dof: int,
+        k: int,
+        check_rotation: bool,
+        modes: np.ndarray,
+        lower: np.ndarray,
+        upper: np.ndarray,
+        slots: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, int]:
         q = np.empty((k, dof))
         ok = np.zeros(k, dtype=np.bool_)
         status = status_of(m, check_rotation)
@@ -181,7 +202,7 @@ def _driver(kernel: Callable) -> Callable | None:
     return drive
 
 
-def single_pose_solver(arm: Arm) -> Callable | None:
+def single_pose_solver(arm: Arm) -> SinglePoseSolver | None:
     """``pose (4, 4) -> (Q (K, dof), ok (K,))`` for ``arm``, or None without numba."""
     kernel = type(arm)._kernel
     if kernel is None:

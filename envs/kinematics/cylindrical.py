@@ -12,12 +12,12 @@ uniquely"). Branches (2): wrist + / − (sign of φ3, the paper's φ3 = ±arccos
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
 
-from .arm import PRISMATIC, REVOLUTE, Arm
+from .arm import PRISMATIC, REVOLUTE, Arm, array_default
 from .rotations import homogeneous, premultiply_rotation, rot_z
 from .wrist import put_wrist_rows, solve_with_wrist, wrist_rotation
 
@@ -37,15 +37,15 @@ class CylindricalArm(Arm):
     )
     closed_form_labels: ClassVar[tuple[str, ...]] = ("wrist+", "wrist-")
 
-    joint_limits: np.ndarray = (
+    joint_limits: np.ndarray = field(default_factory=array_default((
         (0.3, 1.3),
         (-170 * _DEG, 170 * _DEG),
         (0.3, 1.2),
         (-np.pi, np.pi),
         (-135 * _DEG, 135 * _DEG),
         (-np.pi, np.pi),
-    )
-    home: np.ndarray = (0.8, 0.0, 0.6, 0.0, 45 * _DEG, 0.0)
+    )))
+    home: np.ndarray = field(default_factory=array_default((0.8, 0.0, 0.6, 0.0, 45 * _DEG, 0.0)))
 
     def _fk(self, q: np.ndarray) -> np.ndarray:
         phi1, radial = q[..., 1], q[..., 2]
@@ -53,7 +53,7 @@ class CylindricalArm(Arm):
         rotation = rot_z(phi1) @ wrist_rotation(q[..., 3], q[..., 4], q[..., 5])
         return homogeneous(rotation, position)
 
-    def _ik_candidates(self, pose: np.ndarray) -> np.ndarray:
+    def _ik_candidates(self, pose: np.ndarray) -> list[np.ndarray]:
         x, y, z = pose[..., 0, 3], pose[..., 1, 3], pose[..., 2, 3]
         phi1 = np.arctan2(-x, y)
         positioning = np.stack([z, phi1, np.sqrt(x * x + y * y)], -1)[..., None, :]
@@ -61,7 +61,7 @@ class CylindricalArm(Arm):
         return solve_with_wrist(positioning, r_wrist[..., None, :, :])
 
 
-def _cylindrical_kernel(m, p, out) -> None:
+def _cylindrical_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
     """``CylindricalArm._ik_candidates`` for one pose (``envs/kinematics/compiled.py``)."""
     x, y, z = m[0, 3], m[1, 3], m[2, 3]
     phi1 = math.atan2(-x, y)

@@ -14,12 +14,12 @@ is invalid. Branches (1).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
 
-from .arm import PRISMATIC, REVOLUTE, Arm
+from .arm import PRISMATIC, REVOLUTE, Arm, array_default
 from .rotations import homogeneous, rot_y, rot_z
 
 _DEG = np.pi / 180.0
@@ -39,13 +39,13 @@ class Cylindrical4Arm(Arm):
     joint_types: ClassVar[tuple[str, ...]] = (PRISMATIC, REVOLUTE, PRISMATIC, REVOLUTE)
     closed_form_labels: ClassVar[tuple[str, ...]] = ("unique",)
 
-    joint_limits: np.ndarray = (
+    joint_limits: np.ndarray = field(default_factory=array_default((
         (0.3, 1.0),
         (-170 * _DEG, 170 * _DEG),
         (0.3, 1.0),
         (-np.pi, np.pi),
-    )
-    home: np.ndarray = (0.6, 0.0, 0.5, 0.0)
+    )))
+    home: np.ndarray = field(default_factory=array_default((0.6, 0.0, 0.5, 0.0)))
 
     def _fk(self, q: np.ndarray) -> np.ndarray:
         phi1, radial = q[..., 1], q[..., 2]
@@ -63,7 +63,7 @@ class Cylindrical4Arm(Arm):
         return q[..., None, :]
 
 
-def _cylindrical4_kernel(m, p, out) -> None:
+def _cylindrical4_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
     """``Cylindrical4Arm._ik_candidates`` for one pose (``envs/kinematics/compiled.py``)."""
     x, y, z = m[0, 3], m[1, 3], m[2, 3]
     phi1 = math.atan2(-x, y)

@@ -51,12 +51,12 @@ see each class for the convention that picks one.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
 
-from .arm import PRISMATIC, REVOLUTE, Arm
+from .arm import PRISMATIC, REVOLUTE, Arm, array_default
 from .rotations import homogeneous, rot_x, rot_z
 from .wrist import WRIST_SINGULAR_TOL, solve_yxy_wrist, wrist_branches_scalar
 
@@ -85,7 +85,10 @@ _Y_TO_Z = rot_x(np.pi / 2)
 _PC, _PS = float(_Y_TO_Z[1, 1]), float(_Y_TO_Z[2, 1])
 
 
-def zxz_scalar(a00, a01, a02, a10, a11, a12, a20, a21, a22):
+def zxz_scalar(
+    a00: float, a01: float, a02: float, a10: float, a11: float, a12: float, a20: float,
+    a21: float, a22: float,
+) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
     """``solve_zxz`` for one rotation given as floats: ((α, β, γ), (α', β', γ')).
 
     M = Pᵀ·A·P entry by entry (P = ``_Y_TO_Z``, its 6e-17 entries kept), then the wrist."""
@@ -100,7 +103,9 @@ def zxz_scalar(a00, a01, a02, a10, a11, a12, a20, a21, a22):
     return wrist_branches_scalar(m00, m01, m02, m11, m20, m21, m22)
 
 
-def _relative_pose(r3: np.ndarray, p3: np.ndarray, r4: np.ndarray, p4: np.ndarray):
+def _relative_pose(
+    r3: np.ndarray, p3: np.ndarray, r4: np.ndarray, p4: np.ndarray
+) -> np.ndarray:
     """Pose of frame 4 in frame 3 from both frames' world rotations and origins."""
     r3t = np.swapaxes(r3, -1, -2)
     return homogeneous(r3t @ r4, (r3t @ (p4 - p3)[..., None])[..., 0])
@@ -159,22 +164,26 @@ class DualRrpRppArm(Arm):
     #: Roll φ1 and turn φ6 full circle; φ2 ±170° as on common column/waist joints; telescope
     #: s3 0.2–1.2 m, arm 2's radial slide s4 0.2–1.2 m and lift s5 0–1 m (mid-size
     #: cylindrical-robot strokes). The paper gives no limits.
-    joint_limits: np.ndarray = (
+    joint_limits: np.ndarray = field(default_factory=array_default((
         (-np.pi, np.pi),
         (-170 * _DEG, 170 * _DEG),
         (0.2, 1.2),
         (-np.pi, np.pi),
         (0.0, 1.0),
         (0.2, 1.2),
-    )
+    )))
     #: Arm 1 tilted 20° and turned back towards arm 2's column: clear of every singularity.
-    home: np.ndarray = (20 * _DEG, 160 * _DEG, 0.6, 10 * _DEG, 0.5, 0.5)
+    home: np.ndarray = field(
+        default_factory=array_default((20 * _DEG, 160 * _DEG, 0.6, 10 * _DEG, 0.5, 0.5))
+    )
 
     def _check_parameters(self) -> None:
         # a0 > 0 is what turns φ6 into a position constraint when φ1 = 0 or π (see above).
         _require_positive(self, "a0", "l1")
 
-    def _arm1(self, phi1, phi2, s3):
+    def _arm1(
+        self, phi1: np.ndarray, phi2: np.ndarray, s3: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         r3 = rot_x(phi1) @ rot_z(phi2)
         shoulder = np.stack(
             [np.full_like(phi1, self.a0), -self.l1 * np.sin(phi1), self.l1 * np.cos(phi1)], -1
@@ -216,7 +225,16 @@ class DualRrpRppArm(Arm):
         s3_mid = 0.5 * (self.joint_limits[2, 0] + self.joint_limits[2, 1])
         return np.array([self.a0, self.l1, self.b0, s3_mid])
 
-    def _singular_angles(self, rotation, t, s3_mid, phi1, phi2, phi6, singular):
+    def _singular_angles(
+        self,
+        rotation: np.ndarray,
+        t: np.ndarray,
+        s3_mid: float,
+        phi1: np.ndarray,
+        phi2: np.ndarray,
+        phi6: np.ndarray,
+        singular: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """φ1 = 0 or π: R34 = Rx(φ1)·Rz(θ) with θ = φ6 − ε·φ2 (ε = cos φ1).
 
         In frame 4 the lateral equation reads −a0·sin φ6 + s3·R34[0, 1] + (R34ᵀt)_y = b0.
@@ -270,21 +288,25 @@ class DualRrrPppArm(Arm):
     b0: float = 1.2
     #: φ1 and φ3 full circle, φ2 ±170°; gantry strokes reach 0.8 m past arm 1's axis in
     #: y, ±1 m in x and 0–1.2 m in height (the paper gives no limits).
-    joint_limits: np.ndarray = (
+    joint_limits: np.ndarray = field(default_factory=array_default((
         (-np.pi, np.pi),
         (-170 * _DEG, 170 * _DEG),
         (-np.pi, np.pi),
         (-2.0, 0.0),
         (-0.8, 0.4),
         (-1.0, 1.0),
-    )
+    )))
     #: Arm 1 turned 30°, tilted 45°: clear of the φ2 = 0 singularity.
-    home: np.ndarray = (30 * _DEG, 45 * _DEG, -30 * _DEG, -1.0, -0.3, 0.3)
+    home: np.ndarray = field(
+        default_factory=array_default((30 * _DEG, 45 * _DEG, -30 * _DEG, -1.0, -0.3, 0.3))
+    )
 
     def _check_parameters(self) -> None:
         _require_positive(self, "l1", "l2", "l3")
 
-    def _arm1(self, phi1, phi2, phi3):
+    def _arm1(
+        self, phi1: np.ndarray, phi2: np.ndarray, phi3: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         r2 = rot_z(phi1) @ rot_x(phi2)
         r3 = r2 @ rot_z(phi3)
         base = np.stack(
@@ -345,16 +367,18 @@ class DualPprPrrArm(Arm):
     l5: float = 0.5
     #: Carriage strokes ±1 m in x and y, lift 0–1 m, the head's tilt φ5 ±135° (a typical
     #: industrial wrist bend), the turns full circle (the paper gives no limits).
-    joint_limits: np.ndarray = (
+    joint_limits: np.ndarray = field(default_factory=array_default((
         (-1.0, 1.0),
         (-1.0, 1.0),
         (-np.pi, np.pi),
         (0.0, 1.0),
         (-135 * _DEG, 135 * _DEG),
         (-np.pi, np.pi),
-    )
+    )))
     #: Head tilted 45°: clear of the φ5 = 0 singularity.
-    home: np.ndarray = (0.2, 0.0, 30 * _DEG, 0.5, 45 * _DEG, 20 * _DEG)
+    home: np.ndarray = field(
+        default_factory=array_default((0.2, 0.0, 30 * _DEG, 0.5, 45 * _DEG, 20 * _DEG))
+    )
 
     def _check_parameters(self) -> None:
         _require_positive(self, "l1", "l3", "l4", "l5")
@@ -362,7 +386,9 @@ class DualPprPrrArm(Arm):
     def _kernel_parameters(self) -> np.ndarray:
         return np.array([self.l1, self.l3, self.l4, self.l5])
 
-    def _arm2_offset(self, phi5, phi6):
+    def _arm2_offset(
+        self, phi5: np.ndarray, phi6: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         """C4 − E and R4 of arm 2 (E = (0, 0, s4))."""
         r4 = rot_x(phi5) @ rot_z(phi6)
         return r4, self.l5 * r4[..., :, 2] + self.l4 * r4[..., :, 0]
@@ -400,7 +426,7 @@ class DualPprPrrArm(Arm):
 
 
 # ------------------------------------------------------------------ single-pose kernels
-def _rrp_rpp_kernel(m, p, out) -> None:
+def _rrp_rpp_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
     """``DualRrpRppArm._ik_candidates`` for one pose (``envs/kinematics/compiled.py``)."""
     a0, l1, b0, s3_mid = p[0], p[1], p[2], p[3]
     t0, t1, t2 = m[0, 3], m[1, 3], m[2, 3]
@@ -443,7 +469,7 @@ def _rrp_rpp_kernel(m, p, out) -> None:
         out[branch, 3], out[branch, 4], out[branch, 5] = phi6, w2 + s3 * d2, w0 + s3 * d0
 
 
-def _rrr_ppp_kernel(m, p, out) -> None:
+def _rrr_ppp_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
     """``DualRrrPppArm._ik_candidates`` for one pose (``envs/kinematics/compiled.py``)."""
     h, l1, l2, l3, b0 = p[0], p[1], p[2], p[3], p[4]
     t0, t1, t2 = m[0, 3], m[1, 3], m[2, 3]
@@ -467,7 +493,7 @@ def _rrr_ppp_kernel(m, p, out) -> None:
         out[branch, 3], out[branch, 4], out[branch, 5] = y - b0, z - h, x
 
 
-def _ppr_prr_kernel(m, p, out) -> None:
+def _ppr_prr_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
     """``DualPprPrrArm._ik_candidates`` for one pose (``envs/kinematics/compiled.py``)."""
     l1, l3, l4, l5 = p[0], p[1], p[2], p[3]
     t0, t1, t2 = m[0, 3], m[1, 3], m[2, 3]

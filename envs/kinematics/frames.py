@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .rotations import as_float_array, homogeneous
 
@@ -14,7 +15,7 @@ TRIAD_TOL = 1e-6
 FRENET_TOL = 1e-12
 
 
-def pose_from_points(points, a: float, b: float, c: float) -> np.ndarray:
+def pose_from_points(points: ArrayLike, a: float, b: float, c: float) -> np.ndarray:
     """The paper's eq. (3): the gripper pose from four points rigidly attached to it.
 
     ``points`` (…, 4, 3) are the world coordinates of O (the wrist centre) and of the points
@@ -41,7 +42,7 @@ def pose_from_points(points, a: float, b: float, c: float) -> np.ndarray:
     return homogeneous(rotation, origin)
 
 
-def frenet_rotation(velocity, acceleration) -> np.ndarray:
+def frenet_rotation(velocity: ArrayLike, acceleration: ArrayLike) -> np.ndarray:
     """Gripper axes x, y, z along a path's tangent, principal normal and binormal (eq. 7).
 
     ``velocity`` ṙ and ``acceleration`` r̈ are (…, 3). The binormal is ṙ × r̈ / |ṙ × r̈|
@@ -65,7 +66,9 @@ def frenet_rotation(velocity, acceleration) -> np.ndarray:
     return np.stack([tangent, normal, binormal], axis=-1)
 
 
-def frenet_pose(point, velocity, acceleration, b: float) -> np.ndarray:
+def frenet_pose(
+    point: ArrayLike, velocity: ArrayLike, acceleration: ArrayLike, b: float
+) -> np.ndarray:
     """Pose of the wrist centre when a path point r(t) of the object is prescribed (eq. 7).
 
     The object point lies b along the gripper's y axis (the principal normal) from the wrist

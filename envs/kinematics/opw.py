@@ -38,12 +38,13 @@ folded elbow (|cos β| ≤ 1 + 1e-9: both elbow branches coincide and stay valid
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from .arm import REVOLUTE, Arm
+from .arm import REVOLUTE, Arm, array_default
 from .rotations import homogeneous
 from .wrist import wrist_branches, wrist_branches_scalar
 
@@ -107,7 +108,7 @@ _KUKA_HOME = _deg(0.0, -90.0, 90.0, 0.0, 45.0, 0.0)
 _ABB_HOME = _deg(0.0, 0.0, 0.0, 0.0, 30.0, 0.0)
 
 
-def six_floats(arm: Arm, label: str, values) -> tuple[float, ...]:
+def six_floats(arm: Arm, label: str, values: ArrayLike) -> tuple[float, ...]:
     """``values`` as six finite floats; ``ValueError`` naming ``label`` otherwise."""
     try:
         array = np.asarray(values, dtype=np.float64)
@@ -120,7 +121,7 @@ def six_floats(arm: Arm, label: str, values) -> tuple[float, ...]:
     return tuple(float(value) for value in array)
 
 
-def six_signs(arm: Arm, label: str, values) -> tuple[int, ...]:
+def six_signs(arm: Arm, label: str, values: ArrayLike) -> tuple[int, ...]:
     """``values`` as six signs ±1; ``ValueError`` naming ``label`` otherwise."""
     signs = six_floats(arm, label, values)
     if any(sign not in (1.0, -1.0) for sign in signs):
@@ -161,9 +162,9 @@ class OpwArm(Arm):
     #: opw_kinematics' ``sign_corrections`` (±1).
     sign_corrections: tuple[int, ...] = (-1, 1, 1, -1, 1, -1)
     #: ±180° on every joint: no turn branches.
-    joint_limits: np.ndarray = _FULL_CIRCLE
+    joint_limits: np.ndarray = field(default_factory=array_default(_FULL_CIRCLE))
     #: Upper arm vertical, forearm horizontal (KUKA's HOME), wrist bent 45° (not singular).
-    home: np.ndarray = _KUKA_HOME
+    home: np.ndarray = field(default_factory=array_default(_KUKA_HOME))
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "offsets", six_floats(self, "offsets", self.offsets))
@@ -192,15 +193,15 @@ class OpwArm(Arm):
     def _offsets(self) -> np.ndarray:
         return np.array(self.offsets)
 
-    def angles_from_joints(self, q) -> np.ndarray:
+    def angles_from_joints(self, q: ArrayLike) -> np.ndarray:
         """The paper's θ (…, 6) for joint values ``q``: θ = q·sign − offset."""
         return np.asarray(q, dtype=np.float64) * self._signs - self._offsets
 
-    def joints_from_angles(self, theta) -> np.ndarray:
+    def joints_from_angles(self, theta: ArrayLike) -> np.ndarray:
         """Joint values (…, 6) for the paper's θ: q = (θ + offset)·sign."""
         return (np.asarray(theta, dtype=np.float64) + self._offsets) * self._signs
 
-    def wrist_centre(self, q) -> np.ndarray:
+    def wrist_centre(self, q: ArrayLike) -> np.ndarray:
         """(…, 3) wrist centre C for joint values ``q`` (…, 6)."""
         pose = self.fk(q)
         return pose[..., :3, 3] - self.c4 * pose[..., :3, 2]
@@ -327,7 +328,7 @@ class OpwArm(Arm):
         )
 
 
-def _opw_kernel(m, p, out) -> None:
+def _opw_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
     """``OpwArm._ik_candidates`` for one pose, formula for formula, on floats (the compiled
     single-pose path, ``envs/kinematics/compiled.py``)."""
     a1, a2, b, c1, c2, c3, c4 = p[0], p[1], p[2], p[3], p[4], p[5], p[6]
@@ -420,9 +421,9 @@ class KukaKr6R700(OpwArm):
     offsets: tuple[float, ...] = (0.0, -np.pi / 2, 0.0, 0.0, 0.0, 0.0)
     sign_corrections: tuple[int, ...] = (-1, 1, 1, -1, 1, -1)
     #: A1 ±170°, A2 −190°/+45°, A3 −120°/+156°, A4 ±185°, A5 ±120°, A6 ±350°.
-    joint_limits: np.ndarray = _KR6_R700_LIMITS
+    joint_limits: np.ndarray = field(default_factory=array_default(_KR6_R700_LIMITS))
     #: KUKA's HOME (A2 −90°, A3 +90°) with A5 at 45° instead of 0° (not wrist-singular).
-    home: np.ndarray = _KUKA_HOME
+    home: np.ndarray = field(default_factory=array_default(_KUKA_HOME))
 
 
 @dataclass(frozen=True, eq=False)
@@ -443,9 +444,9 @@ class AbbIrb2400(OpwArm):
     offsets: tuple[float, ...] = (0.0, 0.0, -np.pi / 2, 0.0, 0.0, 0.0)
     sign_corrections: tuple[int, ...] = (1, 1, 1, 1, 1, 1)
     #: Axis 1 ±180°, 2 −100°/+110°, 3 −60°/+65°, 4 ±200°, 5 ±120°, 6 ±400° (degrees).
-    joint_limits: np.ndarray = _IRB2400_LIMITS
+    joint_limits: np.ndarray = field(default_factory=array_default(_IRB2400_LIMITS))
     #: ABB's calibration position (all axes 0) with axis 5 at 30° (not wrist-singular).
-    home: np.ndarray = _ABB_HOME
+    home: np.ndarray = field(default_factory=array_default(_ABB_HOME))
 
 
 @dataclass(frozen=True, eq=False)
@@ -466,9 +467,9 @@ class AbbIrb2600(OpwArm):
     offsets: tuple[float, ...] = (0.0, 0.0, -np.pi / 2, 0.0, 0.0, 0.0)
     sign_corrections: tuple[int, ...] = (1, 1, 1, 1, 1, 1)
     #: Axis 1 ±180°, 2 −155°/+95°, 3 −155°/+75°, 4 ±400°, 5 ±120°, 6 ±400° (degrees).
-    joint_limits: np.ndarray = _IRB2600_LIMITS
+    joint_limits: np.ndarray = field(default_factory=array_default(_IRB2600_LIMITS))
     #: Calibration position with axis 5 at 30°.
-    home: np.ndarray = _ABB_HOME
+    home: np.ndarray = field(default_factory=array_default(_ABB_HOME))
 
 
 @dataclass(frozen=True, eq=False)
@@ -489,7 +490,7 @@ class AbbIrb4600(OpwArm):
     offsets: tuple[float, ...] = (0.0, 0.0, -np.pi / 2, 0.0, 0.0, 0.0)
     sign_corrections: tuple[int, ...] = (1, 1, 1, 1, 1, 1)
     #: Axis 1 ±180°, 2 −90°/+150°, 3 −180°/+75°, 4 ±400°, 5 −125°/+120°, 6 ±400° (degrees).
-    joint_limits: np.ndarray = _IRB4600_LIMITS
+    joint_limits: np.ndarray = field(default_factory=array_default(_IRB4600_LIMITS))
     #: Calibration position with axis 5 at 30°.
-    home: np.ndarray = _ABB_HOME
+    home: np.ndarray = field(default_factory=array_default(_ABB_HOME))
 

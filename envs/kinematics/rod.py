@@ -33,12 +33,12 @@ Derivation and the paper's misprints: ``docs/seed004.md``.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
 
-from .arm import REVOLUTE, Arm
+from .arm import REVOLUTE, Arm, array_default
 from .rotations import homogeneous, rot_x, rot_z
 
 _DEG = np.pi / 180.0
@@ -89,13 +89,13 @@ class RodMechanism(Arm):
     psi: float = 90 * _DEG
     #: The paper's conclusions stress that the joints' angular ranges set the workspace
     #: size, but print none: ±30° is a plausible rod-driven tilt; the turntable turns fully.
-    joint_limits: np.ndarray = (
+    joint_limits: np.ndarray = field(default_factory=array_default((
         (-np.pi, np.pi),
         (-30 * _DEG, 30 * _DEG),
         (-30 * _DEG, 30 * _DEG),
-    )
+    )))
     #: The paper's initial position: both rods at their reference, table level.
-    home: np.ndarray = (0.0, 0.0, 0.0)
+    home: np.ndarray = field(default_factory=array_default((0.0, 0.0, 0.0)))
 
     def _check_parameters(self) -> None:
         for label in ("lp_prime", "b"):
@@ -148,7 +148,7 @@ class RodMechanism(Arm):
         return np.array([self.lp_prime, self.b, self.a, self.gamma, self.psi])
 
 
-def _rod_kernel(m, p, out) -> None:
+def _rod_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
     """``RodMechanism._ik_candidates`` for one target (``envs/kinematics/compiled.py``)."""
     lpp, b, a, gamma, psi = p[0], p[1], p[2], p[3], p[4]
     x, y, z = m[0, 3], m[1, 3], m[2, 3]

@@ -6,13 +6,14 @@ Every function broadcasts over leading axes. Angles in radians, lengths in metre
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 #: Largest |RᵀR − I| entry accepted as an orthonormal rotation. Poses built from measured
 #: points or float32 pipelines carry ~1e-7 noise; anything beyond 1e-6 is a wrong matrix.
 ORTHONORMAL_TOL = 1e-6
 
 
-def _elementary(angle, axis: int) -> np.ndarray:
+def _elementary(angle: ArrayLike, axis: int) -> np.ndarray:
     angle = np.asarray(angle, dtype=np.float64)
     c, s = np.cos(angle), np.sin(angle)
     i, j = [(1, 2), (2, 0), (0, 1)][axis]
@@ -25,22 +26,22 @@ def _elementary(angle, axis: int) -> np.ndarray:
     return out
 
 
-def rot_x(angle) -> np.ndarray:
+def rot_x(angle: ArrayLike) -> np.ndarray:
     """Rotation about x by ``angle`` (…,) -> (…, 3, 3)."""
     return _elementary(angle, 0)
 
 
-def rot_y(angle) -> np.ndarray:
+def rot_y(angle: ArrayLike) -> np.ndarray:
     """Rotation about y by ``angle`` (…,) -> (…, 3, 3)."""
     return _elementary(angle, 1)
 
 
-def rot_z(angle) -> np.ndarray:
+def rot_z(angle: ArrayLike) -> np.ndarray:
     """Rotation about z by ``angle`` (…,) -> (…, 3, 3)."""
     return _elementary(angle, 2)
 
 
-def premultiply_rotation(angle, rotation: np.ndarray, axis: int) -> np.ndarray:
+def premultiply_rotation(angle: ArrayLike, rotation: np.ndarray, axis: int) -> np.ndarray:
     """R_axis(angle)·rotation for (…,) angles and (…, 3, 3) rotations, broadcast.
 
     Works on rows instead of building the elementary matrix and calling matmul, which is
@@ -73,7 +74,7 @@ def wrap_angle(angle: np.ndarray) -> np.ndarray:
     return angle - (2.0 * np.pi) * np.floor((angle + np.pi) / (2.0 * np.pi))
 
 
-def as_float_array(value, name: str) -> np.ndarray:
+def as_float_array(value: ArrayLike, name: str) -> np.ndarray:
     """``value`` as a float64 array; ``ValueError`` naming ``name`` if it holds NaN or inf."""
     try:
         array = np.asarray(value, dtype=np.float64)

@@ -14,12 +14,12 @@ elevation range by construction. Branches (2): wrist + / − (sign of φ4).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
 
-from .arm import PRISMATIC, REVOLUTE, Arm
+from .arm import PRISMATIC, REVOLUTE, Arm, array_default
 from .rotations import homogeneous, premultiply_rotation, rot_x, rot_z
 from .wrist import put_wrist_rows, solve_with_wrist, wrist_rotation
 
@@ -41,15 +41,15 @@ class SphericalArm(Arm):
 
     #: Shoulder height O0O1 (m).
     l1: float = 0.9
-    joint_limits: np.ndarray = (
+    joint_limits: np.ndarray = field(default_factory=array_default((
         (-170 * _DEG, 170 * _DEG),
         (-45 * _DEG, 60 * _DEG),
         (0.4, 1.4),
         (-np.pi, np.pi),
         (-135 * _DEG, 135 * _DEG),
         (-np.pi, np.pi),
-    )
-    home: np.ndarray = (0.0, 0.0, 0.8, 0.0, 45 * _DEG, 0.0)
+    )))
+    home: np.ndarray = field(default_factory=array_default((0.0, 0.0, 0.8, 0.0, 45 * _DEG, 0.0)))
 
     def _check_parameters(self) -> None:
         if self.l1 <= 0.0:
@@ -69,7 +69,7 @@ class SphericalArm(Arm):
         rotation = rot_z(phi1) @ rot_x(phi2) @ wrist_rotation(q[..., 3], q[..., 4], q[..., 5])
         return homogeneous(rotation, position)
 
-    def _ik_candidates(self, pose: np.ndarray) -> np.ndarray:
+    def _ik_candidates(self, pose: np.ndarray) -> list[np.ndarray]:
         x, y, z = pose[..., 0, 3], pose[..., 1, 3], pose[..., 2, 3]
         phi1 = np.arctan2(-x, y)
         reach, height = np.hypot(x, y), z - self.l1
@@ -83,7 +83,7 @@ class SphericalArm(Arm):
         return np.array([self.l1])
 
 
-def _spherical_kernel(m, p, out) -> None:
+def _spherical_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
     """``SphericalArm._ik_candidates`` for one pose (``envs/kinematics/compiled.py``)."""
     x, y, z = m[0, 3], m[1, 3], m[2, 3]
     phi1 = math.atan2(-x, y)

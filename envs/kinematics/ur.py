@@ -40,12 +40,13 @@ stretched or folded elbow (both elbow branches coincide).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import ClassVar
+from dataclasses import dataclass, field
+from typing import ClassVar, TypeVar
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from .arm import REVOLUTE, Arm
+from .arm import REVOLUTE, Arm, array_default
 from .opw import _LABELS, _deg, _limits_deg
 from .wrist import WRIST_SINGULAR_TOL
 
@@ -72,7 +73,9 @@ _SHOULDER = np.array([1.0, -1.0])  # front, back: the sign of sign(a2)·(p5·x1)
 _WRIST = np.array([1.0, -1.0])  # wrist+, wrist−: the sign of sin θ5
 
 
-def dh_transform(theta, d: float, a: float, cos_alpha: float, sin_alpha: float) -> np.ndarray:
+def dh_transform(
+    theta: ArrayLike, d: float, a: float, cos_alpha: float, sin_alpha: float
+) -> np.ndarray:
     """Rz(θ)·Tz(d)·Tx(a)·Rx(α), batched over θ (…,) -> (…, 4, 4)."""
     theta = np.asarray(theta, dtype=np.float64)
     c, s = np.cos(theta), np.sin(theta)
@@ -112,10 +115,10 @@ class UrArm(Arm):
     d5: float = 0.0997
     #: Wrist 2 to the tool flange (tool0), m (DH d6, > 0).
     d6: float = 0.0996
-    joint_limits: np.ndarray = _FULL_CIRCLE
+    joint_limits: np.ndarray = field(default_factory=array_default(_FULL_CIRCLE))
     #: The upright "ready" pose of UR's examples, tool pointing down: (0, −90°, 90°, −90°,
     #: −90°, 0); clear of the wrist (sin θ5 = −1) and shoulder singularities.
-    home: np.ndarray = _READY
+    home: np.ndarray = field(default_factory=array_default(_READY))
 
     def _check_parameters(self) -> None:
         for label in ("d1", "d4", "d5", "d6"):
@@ -132,7 +135,7 @@ class UrArm(Arm):
         d = (self.d1, 0.0, 0.0, self.d4, self.d5, self.d6)
         return d, (0.0, self.a2, self.a3, 0.0, 0.0, 0.0)
 
-    def frames(self, q) -> np.ndarray:
+    def frames(self, q: ArrayLike) -> np.ndarray:
         """(…, 7, 4, 4): the base frame and frames 1–6 (tool0) of UR's DH chain."""
         q = np.asarray(q, dtype=np.float64)
         d, a = self.dh
@@ -238,7 +241,21 @@ class UrArm(Arm):
         return np.array([self.d1, self.a2, self.a3, self.d4, self.d5, self.d6])
 
 
-def singular_wrist_turn(reach, height, x6_reach, x6_height, y6_reach, y6_height, a2, a3, d5):
+#: ``singular_wrist_turn`` takes and returns floats (the compiled kernel) or arrays.
+_Value = TypeVar("_Value", float, np.ndarray)
+
+
+def singular_wrist_turn(
+    reach: _Value,
+    height: _Value,
+    x6_reach: _Value,
+    x6_height: _Value,
+    y6_reach: _Value,
+    y6_height: _Value,
+    a2: float,
+    a3: float,
+    d5: float,
+) -> tuple[_Value, _Value]:
     """(cos θ6, sin θ6) at sin θ5 = 0, where θ6 is free (arrays or floats).
 
     With the tool axis along the joint 2–4 axes, frame 4's origin p4 = p5 − d5·z4 can be any
@@ -269,7 +286,7 @@ def _elbow_sign(a3: float) -> np.ndarray:
     return np.array([[-s, s], [s, -s]])
 
 
-def _ur_kernel(m, p, out) -> None:
+def _ur_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
     """``UrArm._ik_candidates`` for one pose, formula for formula, on floats (the compiled
     single-pose path, ``envs/kinematics/compiled.py``)."""
     d1, a2, a3, d4, d5, d6 = p[0], p[1], p[2], p[3], p[4], p[5]
@@ -350,8 +367,8 @@ class Ur5e(UrArm):
     d5: float = 0.0997
     d6: float = 0.0996
     #: ±360°, the elbow ±180° (degrees from UR's description, converted with np.deg2rad).
-    joint_limits: np.ndarray = _UR_LIMITS
-    home: np.ndarray = _READY
+    joint_limits: np.ndarray = field(default_factory=array_default(_UR_LIMITS))
+    home: np.ndarray = field(default_factory=array_default(_READY))
 
 
 @dataclass(frozen=True, eq=False)
@@ -368,5 +385,5 @@ class Ur10e(UrArm):
     d5: float = 0.11985
     d6: float = 0.11655
     #: ±360°, the elbow ±180° (degrees from UR's description, converted with np.deg2rad).
-    joint_limits: np.ndarray = _UR_LIMITS
-    home: np.ndarray = _READY
+    joint_limits: np.ndarray = field(default_factory=array_default(_UR_LIMITS))
+    home: np.ndarray = field(default_factory=array_default(_READY))

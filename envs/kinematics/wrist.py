@@ -21,6 +21,7 @@ branches then describe the same configuration and both are returned as valid.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -45,7 +46,10 @@ def solve_yxy_wrist(r_wrist: np.ndarray) -> np.ndarray:
     return np.stack(wrist_branches(*_wrist_entries(r_wrist)), axis=-1)
 
 
-def wrist_branches(r00, r01, r02, r11, r20, r21, r22) -> tuple[np.ndarray, ...]:
+def wrist_branches(
+    r00: np.ndarray, r01: np.ndarray, r02: np.ndarray, r11: np.ndarray, r20: np.ndarray,
+    r21: np.ndarray, r22: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``solve_yxy_wrist`` from the seven entries of R_w it reads, each a (…,) array.
 
     Returns the columns (a, b, c), each (…, 2) with the + branch first. Entries in and
@@ -56,7 +60,7 @@ def wrist_branches(r00, r01, r02, r11, r20, r21, r22) -> tuple[np.ndarray, ...]:
     b = np.arctan2(sin_b, r11)
     a = np.arctan2(r01, r21)
     singular = sin_b < WRIST_SINGULAR_TOL
-    shift = np.pi
+    shift: float | np.ndarray = np.pi
     if np.any(singular):
         # cos b = ±1 here: a ± c = atan2(±R02, R00); split the free angle evenly.
         folded = r11 < 0.0
@@ -90,7 +94,9 @@ def solve_with_wrist(positioning: np.ndarray, r_wrist: np.ndarray) -> list[np.nd
     )
 
 
-def with_positioning(positioning, wrist) -> list[np.ndarray]:
+def with_positioning(
+    positioning: Sequence[np.ndarray], wrist: Sequence[np.ndarray]
+) -> list[np.ndarray]:
     """Columns of (…, P) positioning joints and (…, P, 2) wrist joints -> six (…, 2P) columns."""
     columns = [np.repeat(column, 2, axis=-1) for column in positioning]
     columns += [column.reshape((*column.shape[:-2], -1)) for column in wrist]
@@ -103,7 +109,9 @@ def _wrist_entries(r_wrist: np.ndarray) -> tuple[np.ndarray, ...]:
     )
 
 
-def wrist_branches_scalar(r00, r01, r02, r11, r20, r21, r22) -> tuple[tuple[float, ...], ...]:
+def wrist_branches_scalar(
+    r00: float, r01: float, r02: float, r11: float, r20: float, r21: float, r22: float,
+) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
     """``wrist_branches`` for one rotation given as floats: ((a, b, c), (a', b', c')).
 
     The same formulas, on floats with ``math``: the kernels of the compiled single-pose
@@ -126,7 +134,10 @@ def wrist_branches_scalar(r00, r01, r02, r11, r20, r21, r22) -> tuple[tuple[floa
     return (a, b, c), (flipped_a, -b, flipped_c)
 
 
-def put_wrist_rows(out, row, q1, q2, q3, r00, r01, r02, r11, r20, r21, r22) -> None:
+def put_wrist_rows(
+    out: np.ndarray, row: int, q1: float, q2: float, q3: float, r00: float, r01: float,
+    r02: float, r11: float, r20: float, r21: float, r22: float,
+) -> None:
     """Write the rows (q1, q2, q3, wrist +) and (q1, q2, q3, wrist −) of a six-joint arm
     into ``out[row]`` and ``out[row + 1]`` (a kernel of the single-pose path)."""
     plus, minus = wrist_branches_scalar(r00, r01, r02, r11, r20, r21, r22)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Protocol, cast
 
 import numpy as np
 
@@ -62,18 +62,32 @@ class TaskGenerator(Protocol):
         """``ValueError`` if the generator cannot serve this arm in this scene."""
 
 
+#: A generator function before ``task_generator`` gives it its attributes.
+GeneratorFunction = Callable[
+    [Arm, np.random.Generator, int, FreePredicate, PathPredicate], Task
+]
+
+
 def task_generator(
     default_waypoints: int,
     check_arm: Callable[[Arm, str], None] | None = None,
     fixed_waypoints: bool = False,
-):
+) -> Callable[[GeneratorFunction], TaskGenerator]:
     """Decorate a generator function with its default length and applicability check."""
 
-    def decorate(function):
-        function.default_waypoints = default_waypoints
-        function.fixed_waypoints = fixed_waypoints
-        function.check_arm = check_arm or (lambda arm, scene: None)
-        return function
+    def decorate(function: GeneratorFunction) -> TaskGenerator:
+        # The function object itself becomes the generator: with the three attributes set
+        # below it has everything ``TaskGenerator`` asks for.
+        generator = cast(TaskGenerator, function)
+        generator.default_waypoints = default_waypoints
+        generator.fixed_waypoints = fixed_waypoints
+        # The protocol spells ``check_arm`` as a method (``FileTask``'s is a staticmethod);
+        # here it is an attribute holding a function, called the same way. mypy refuses to
+        # assign to a method, hence the ignore.
+        generator.check_arm = check_arm or (  # type: ignore[method-assign, assignment]
+            lambda arm, scene: None
+        )
+        return generator
 
     return decorate
 

@@ -10,6 +10,8 @@ valid, collision-free branch.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from envs.kinematics import Arm, frenet_pose
@@ -38,7 +40,13 @@ def _reachable(arm: Arm, poses: np.ndarray, is_free: FreePredicate) -> bool:
     return bool(free.any(axis=-1).all())
 
 
-def _place(arm, rng, n_waypoints, is_free, make_poses) -> Task:
+def _place(
+    arm: Arm,
+    rng: np.random.Generator,
+    n_waypoints: int,
+    is_free: FreePredicate,
+    make_poses: Callable[[np.ndarray, int, np.random.Generator], np.ndarray],
+) -> Task:
     for _ in range(MAX_ATTEMPTS):
         anchor = sample_free_configurations(arm, rng, 2, is_free)
         poses = make_poses(arm.fk(anchor[1]), n_waypoints, rng)
@@ -47,7 +55,9 @@ def _place(arm, rng, n_waypoints, is_free, make_poses) -> Task:
     raise RuntimeError(f"{arm.name}: no reachable path found in {MAX_ATTEMPTS} attempts")
 
 
-def _helical_poses(anchor: np.ndarray, radius, pitch, phase, t: np.ndarray) -> np.ndarray:
+def _helical_poses(
+    anchor: np.ndarray, radius: float, pitch: float, phase: float, t: np.ndarray
+) -> np.ndarray:
     """Frenet poses along the helix through the anchor's wrist centre at angle ``phase``
     (a circle when ``pitch`` is 0), at the angles ``t``."""
     centre = anchor[:3, 3] - radius * np.array([np.cos(phase), np.sin(phase), 0.0])

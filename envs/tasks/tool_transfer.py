@@ -52,6 +52,28 @@ def _parked_configurations(arm: Arm) -> np.ndarray:
     return parked
 
 
+def _usable_grips(arm: Arm, is_free: FreePredicate) -> np.ndarray:
+    """The grips (indices into ``GRIPS``) with which every pose of a tool change has a
+    collision-free branch: in each slot, above it, and in the spindle. The worked
+    example's arm, a wrist centre with nothing around it, has both; a real wrist may not
+    fit under the spindle holding the tool one way round. ``ValueError`` if none is."""
+    slots, above, spindle = _cell_poses()
+    usable = []
+    for grip in range(len(GRIPS)):
+        poses = np.concatenate([slots[grip], above[grip], spindle[grip][None]])
+        solutions, valid = arm.ik(poses)
+        free = np.zeros_like(valid)
+        if valid.any():
+            free[valid] = is_free(solutions[valid])
+        if free.any(axis=1).all():
+            usable.append(grip)
+    if not usable:
+        raise ValueError(f"{arm.name} cannot change tools in this cell: with either grip some "
+                         "slot or the spindle has no collision-free branch (place its base "
+                         "elsewhere: scene_options base_pos)")
+    return np.array(usable)
+
+
 def _require_anthropomorphic(arm: Arm, scene: str) -> None:
     if arm.name != "anthropomorphic":
         raise ValueError(f"the milling-cell tasks need the anthropomorphic arm, not {arm.name!r}")
@@ -92,14 +114,15 @@ def tool_changes(
     (``n_waypoints`` may cut the cycle anywhere; the default is two tools).
 
     Randomised: the slot of each tool, its grip (either way round about its axis, kept
-    from slot to spindle) and the start, where an earlier job left the arm: home or a
+    from slot to spindle; of the grips with which every pose has a free branch) and the start, where an earlier job left the arm: home or a
     collision-free front-shoulder branch above a slot or in the spindle. The spindle pose
     is the paper's position 2; slot 0 is its position 1. The pose set is finite, so the
     env's path-collision cache covers every move after warm-up.
     """
     slots, above, spindle = _cell_poses()
     tools = -(-n_waypoints // 4)
-    grips = rng.integers(len(GRIPS), size=tools)
+    usable = _usable_grips(arm, is_free)
+    grips = usable[rng.integers(len(usable), size=tools)]
     chosen = rng.integers(slots.shape[1], size=tools)
     cycle = np.stack(
         [above[grips, chosen], slots[grips, chosen], above[grips, chosen], spindle[grips]],

@@ -33,11 +33,12 @@ import math
 import os
 import re
 import tempfile
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from envs.kinematics import pose_from_points
 from envs.kinematics.rotations import ORTHONORMAL_TOL
@@ -84,7 +85,9 @@ class WaypointFileError(ValueError):
         self.problem = problem
         super().__init__(f"{self.path}: {self.where + ': ' if self.where else ''}{problem}")
 
-    def __reduce__(self):  # pickles whole (e.g. raised in a vector env's worker)
+    def __reduce__(  # pickles whole (e.g. raised in a vector env's worker)
+        self,
+    ) -> tuple[type[WaypointFileError], tuple[str, str, int | None, int | None]]:
         return type(self), (self.path, self.problem, self.line, self.entry)
 
     @property
@@ -367,7 +370,7 @@ def _recognise(
     return fmt
 
 
-def _number(path: Path, value, column: str, where: dict) -> float:
+def _number(path: Path, value: object, column: str, where: dict) -> float:
     if isinstance(value, bool) or value is None:
         raise WaypointFileError(
             path, f"column {column}: expected a number, got {json.dumps(value)}", **where
@@ -402,7 +405,7 @@ def _number(path: Path, value, column: str, where: dict) -> float:
     return number
 
 
-def _text(path: Path, value, column: str, where: dict) -> str:
+def _text(path: Path, value: object, column: str, where: dict) -> str:
     if isinstance(value, str):
         return value.strip() if "line" in where else value
     raise WaypointFileError(
@@ -410,7 +413,9 @@ def _text(path: Path, value, column: str, where: dict) -> str:
     )
 
 
-def _quaternion_rotations(path: Path, table: dict, lines, place) -> np.ndarray:
+def _quaternion_rotations(
+    path: Path, table: dict, lines: tuple[int, ...], place: Callable[[int], dict]
+) -> np.ndarray:
     w, x, y, z = (table[key] for key in QUATERNION)
     norm2 = w * w + x * x + y * y + z * z
     deviation = np.abs(np.sqrt(norm2) - 1.0)
@@ -435,7 +440,9 @@ def _quaternion_rotations(path: Path, table: dict, lines, place) -> np.ndarray:
     return rotation
 
 
-def _matrix_rotations(path: Path, table: dict, lines, place) -> np.ndarray:
+def _matrix_rotations(
+    path: Path, table: dict, lines: tuple[int, ...], place: Callable[[int], dict]
+) -> np.ndarray:
     rotation = np.stack([table[key] for key in MATRIX], axis=-1).reshape(-1, 3, 3)
     error = np.abs(np.swapaxes(rotation, -1, -2) @ rotation - np.eye(3)).max(axis=(-2, -1))
     bad = np.flatnonzero(~(error <= ROTATION_TOL))
@@ -455,7 +462,13 @@ def _matrix_rotations(path: Path, table: dict, lines, place) -> np.ndarray:
     return rotation
 
 
-def _points_poses(path: Path, table: dict, options: dict, lines, place) -> np.ndarray:
+def _points_poses(
+    path: Path,
+    table: dict,
+    options: dict,
+    lines: tuple[int, ...],
+    place: Callable[[int], dict],
+) -> np.ndarray:
     n = len(lines)
     points_mm = np.stack([table[key] for key in POINTS], axis=-1).reshape(n, 4, 3)
     for key, value in options.items():
@@ -490,7 +503,7 @@ def _points_poses(path: Path, table: dict, options: dict, lines, place) -> np.nd
 # ------------------------------------------------------------------------------- writing
 def write_waypoints(
     path: str | os.PathLike,
-    poses,
+    poses: ArrayLike,
     names: Sequence[str] | None = None,
     format: str = "matrix",
 ) -> Path:
@@ -551,7 +564,7 @@ def write_waypoints(
     return path
 
 
-def rotation_to_quaternion(rotation) -> np.ndarray:
+def rotation_to_quaternion(rotation: ArrayLike) -> np.ndarray:
     """Unit quaternion (w, x, y, z), w ≥ 0, of a (3, 3) rotation (Shepperd's method)."""
     m = np.asarray(rotation, dtype=np.float64)
     trace = m[0, 0] + m[1, 1] + m[2, 2]

@@ -129,6 +129,18 @@ def test_oracle_finishes_every_random_waypoint_task_without_a_collision(env_id):
         assert not env.unwrapped.episode_collided and not env.unwrapped.episode_invalid, seed
 
 
+@pytest.mark.parametrize("env_id", [env_id for env_id, spec in envs.ENV_SPECS.items()
+                                     if spec["task"] == "tool_changes"])
+def test_oracle_finishes_every_tool_change_without_a_collision(env_id):
+    # The cell is laid out so that every drawn tool change can be done collision-free
+    # (for the IRB 4600 only the grip that fits under the spindle is drawn).
+    env = gym.make(env_id)
+    oracle = make_baseline("dp_oracle", env)
+    for seed in range(30):
+        _, _ = play(env, oracle, seed)
+        assert not env.unwrapped.episode_collided and not env.unwrapped.episode_invalid, seed
+
+
 def test_lazy_backward_pass_equals_ladder_q_tables():
     # The compiled backward pass over stacked edges is ladder_q_tables, bit for bit, with
     # missing rows, terminal edges and masked branches mixed in.

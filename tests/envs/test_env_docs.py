@@ -94,6 +94,8 @@ REQUIRED_IDS = {
     "IKBranch/KukaKR6-v0": ("kuka_kr6_r700", "random_clutter", "random", "compact", True),
     "IKBranch/UR5e-v0": ("ur5e", "random_clutter", "random", "compact", True),
     "IKBranch/IRB2600Screwing-v0": ("abb_irb2600", "empty", "screwing", "compact", False),
+    "IKBranch/IRB4600ToolTransfer-v0": (
+        "abb_irb4600", "milling_cell", "tool_changes", "compact", False),
 }
 
 

@@ -8,12 +8,13 @@ import pytest
 from envs.kinematics import ARM_NAMES, make_arm
 from envs.kinematics.paper_example import example_poses, rack_slot_poses
 from envs.models import CollisionChecker, build_arm_model
-from envs.tasks import TASKS
-from envs.tasks.tool_transfer import RACK_CLEARANCE
+from envs.tasks import TASKS, tool_transfer
+from envs.tasks.tool_transfer import RACK_CLEARANCE, _parked_configurations
 from tests.envs.tasks.helpers import (
     all_paths_free,
     assert_every_waypoint_has_a_free_branch,
     assert_same_task,
+    nowhere_free,
 )
 
 ARM = make_arm("anthropomorphic")
@@ -75,8 +76,12 @@ def test_tool_changes_cycle_above_slot_slot_above_slot_spindle():
 
 
 def test_tool_changes_start_collision_free():
-    def is_free(q, need=None):  # forbid every start but home
-        return np.all(np.asarray(q) == ARM.home, axis=-1)
+    parked = _parked_configurations(ARM)
+
+    def is_free(q, need=None):  # forbid every parked start but home
+        q = np.asarray(q)
+        taken = (q[:, None, :] == parked[None, 1:, :]).all(axis=-1).any(axis=1)
+        return ~taken
 
     task = TASKS["tool_changes"](ARM, np.random.default_rng(4), 8, is_free, all_paths_free)
     np.testing.assert_array_equal(task.start, ARM.home)
@@ -139,3 +144,22 @@ def test_tool_changes_need_the_milling_cell():
         with pytest.raises(ValueError, match="milling_cell"):
             TASKS["tool_changes"].check_arm(ARM, scene)
     TASKS["paper_transfer"].check_arm(ARM, "empty")  # the transfer itself runs anywhere
+
+
+def test_tool_changes_take_only_grips_whose_every_pose_has_a_free_branch():
+    # A scene where the spindle is blocked for grip 0: only grip 1 is ever drawn.
+    _, _, spindle = tool_transfer._cell_poses()
+    blocked, valid = ARM.ik(spindle[0])
+    blocked = blocked[valid]
+
+    def is_free(q, need=None):
+        q = np.asarray(q)
+        return ~(np.abs(q[:, None, :] - blocked[None]) < 1e-9).all(axis=-1).any(axis=1)
+
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        task = TASKS["tool_changes"](ARM, rng, 8, is_free, all_paths_free)
+        for tool in range(2):
+            assert np.allclose(task.poses[4 * tool + 3], spindle[1])
+    with pytest.raises(ValueError, match="cannot change tools"):
+        TASKS["tool_changes"](ARM, rng, 8, nowhere_free, all_paths_free)
