@@ -165,13 +165,13 @@ class IKBranchEnv(gym.Env):
       RodMechanism **-v2**, and the industrial arms (real limits, every turn branch)
       KukaKR6 **-v0**, UR5e **-v0** (random clutter), IRB4600ToolTransfer **-v0** (the
       milling cell's tool changes, a gripper holding the tool) and IRB2600Screwing **-v0**
-      (a nut runner whose j6 must unwind): the compact observation (O(K): least travel into and out of each branch instead of K × K
-      travel blocks); the random-clutter ids draw a new clutter at every reset
-      (``scene_seed=None``, seeds from ``scene_seeds``, training and held-out ranges in
-      ``envs/seeds.py``; obstacles are primitive boxes and capsules, moved without a
-      recompile); the dual-arm ids' tasks sweep along a collision-free straight path
-      (``relative_motion_free``), so every task has a collision-free solution. The older
-      ids stay registered, unchanged, for their published models.
+      (a nut runner whose j6 must unwind): the compact observation (O(K): least travel into
+      and out of each branch instead of K × K travel blocks); the random-clutter ids draw a
+      new clutter at every reset (``scene_seed=None``, seeds from ``scene_seeds``, training
+      and held-out ranges in ``envs/seeds.py``; obstacles are primitive boxes and capsules,
+      moved without a recompile); the dual-arm ids' tasks sweep along a collision-free
+      straight path (``relative_motion_free``), so every task has a collision-free solution.
+      The older ids stay registered, unchanged, for their published models.
     - Same ids, same behaviour (session 3): collision checks run through a compiled
       filter that decides exactly as before (``envs/models/compiled.py``), and the sample
       grid of a path is summed in joint order for every backend; the published results

@@ -114,10 +114,11 @@ def tool_changes(
     (``n_waypoints`` may cut the cycle anywhere; the default is two tools).
 
     Randomised: the slot of each tool, its grip (either way round about its axis, kept
-    from slot to spindle; of the grips with which every pose has a free branch) and the start, where an earlier job left the arm: home or a
-    collision-free front-shoulder branch above a slot or in the spindle. The spindle pose
-    is the paper's position 2; slot 0 is its position 1. The pose set is finite, so the
-    env's path-collision cache covers every move after warm-up.
+    from slot to spindle; of the grips with which every pose has a free branch) and the
+    start, where an earlier job left the arm: home or a collision-free front-shoulder branch
+    above a slot or in the spindle. The spindle pose is the paper's position 2; slot 0 is
+    its position 1. The pose set is finite, so the env's path-collision cache covers every
+    move after warm-up.
     """
     slots, above, spindle = _cell_poses()
     tools = -(-n_waypoints // 4)
