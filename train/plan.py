@@ -129,6 +129,11 @@ class Step:
     time: float
     collision: bool
     invalid: bool
+    #: A colliding move: the geom pairs in contact at its first colliding sample (the
+    #: exact check's own contacts; at a free start the configuration's), and where along
+    #: the move that sample lies (t in [0, 1]; 1.0 at a free start).
+    contacts: tuple[tuple[str, str], ...] = ()
+    contact_fraction: float | None = None
 
 
 @dataclass(frozen=True)
@@ -165,10 +170,13 @@ class PlanRun:
         if self.success:
             return ""
         reasons = []
-        hits = [s.waypoint for s in self.steps if s.collision]
-        if hits:
-            reasons.append("the move into waypoint" + ("s " if len(hits) > 1 else " ")
-                           + ", ".join(map(str, hits)) + " collides")
+        for step in self.steps:
+            if step.collision:
+                where = ("" if step.contact_fraction is None
+                         else f" at {step.contact_fraction:.0%} of the move")
+                pairs = ", ".join(f"{a} – {b}" for a, b in step.contacts)
+                reasons.append(f"the move into waypoint {step.waypoint} collides{where}"
+                               + (f" ({pairs})" if pairs else ""))
         bad = [s.waypoint for s in self.steps if s.invalid]
         if bad:
             reasons.append(f"an invalid branch at waypoint {bad[0]}")
@@ -194,6 +202,7 @@ def play(policy, env) -> tuple[tuple[Step, ...], float, bool, float]:
                                        deterministic=True, action_masks=masks)
         decision += time.perf_counter() - tick
         branch = int(np.asarray(action).item())
+        before = base.q.copy()
         obs, r, terminated, truncated, info = env.step(branch)
         start, done = False, terminated or truncated
         reward += float(r)
@@ -204,8 +213,20 @@ def play(policy, env) -> tuple[tuple[Step, ...], float, bool, float]:
             terms={k: float(v) for k, v in info.items() if k.startswith("reward_")},
             travel=float(info["travel"]), time=float(info["time"]),
             collision=bool(info["collision"]), invalid=bool(info["invalid"]),
+            **(_contacts(base, before, int(info["waypoint"])) if info["collision"] else {}),
         ))
     return tuple(steps), reward, success, decision
+
+
+def _contacts(base, before: np.ndarray, waypoint: int) -> dict[str, Any]:
+    """What a colliding move hits: the exact check's contacts at its first colliding
+    sample (``Step.contacts``, ``Step.contact_fraction``)."""
+    if waypoint == 0 and base.task.free_start:  # the first pick: the configuration itself
+        found = base.checker.contacts(base.q)
+        return {"contacts": tuple(sorted({(c.geom1, c.geom2) for c in found})),
+                "contact_fraction": 1.0}
+    result = base.checker.check_path(before, base.q)
+    return {"contacts": result.pairs, "contact_fraction": result.first_fraction}
 
 
 @dataclass
@@ -415,6 +436,8 @@ def plan_json(plan: Plan, argv: Sequence[str] | None = None) -> dict[str, Any]:
                 "q": None if step.invalid else [float(v) for v in step.q],
                 "reward": step.reward, **step.terms, "travel": step.travel,
                 "time": step.time, "collision": step.collision, "invalid": step.invalid,
+                "contacts": [list(pair) for pair in step.contacts],
+                "contact_fraction": step.contact_fraction,
             }
             if not step.invalid:
                 fk = arm.fk(step.q)
@@ -476,8 +499,8 @@ def animation_frames(plan: Plan, run: PlanRun | None = None, fps: float = 12.0,
     frames: list[Frame] = []
 
     def frame(q, step: Step, travel: float, moving: bool, duration: float) -> Frame:
-        # The CSV's 0-based waypoint index, then the file's name for it.
-        where = f"{'to ' if moving else ''}waypoint {step.waypoint} (of {n})"
+        # The CSV's 0-based waypoint index (of 0 … n − 1), then the file's name for it.
+        where = f"{'to ' if moving else ''}waypoint {step.waypoint} of 0–{n - 1}"
         return Frame(
             q=np.asarray(q), duration=duration,
             lines=(f"{where}: {plan.names[step.waypoint]}",

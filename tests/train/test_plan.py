@@ -187,6 +187,27 @@ def test_paper_example_gif_is_rendered_and_annotated(cell, capsys):
     assert (np.abs(body[0] - body[-1]).max(axis=-1) > 30).mean() > 0.01
 
 
+def test_animation_captions_say_waypoint_branch_and_travel_so_far(cell):
+    request = plan_module.request_from_args(plan_module.parser().parse_args(args_of(PAPER)))
+    result = plan_module.plan(request)
+    frames = plan_module.animation_frames(result, fps=12.0)
+    first, last = frames[0], frames[-1]
+    # The free start: the arm already stands at position 1 in branch 0 (1.1).
+    assert first.lines == ("waypoint 0 of 0–1: position 1 (rack)",
+                           "branch 0: front/elbow-up/wrist+", "travel 0.0 deg   [dp_oracle]")
+    assert last.lines == ("waypoint 1 of 0–1: position 2 (spindle)",
+                          "branch 0: front/elbow-up/wrist+", "travel 275.1 deg   [dp_oracle]")
+    moving = [f for f in frames if f.lines[0].startswith("to waypoint 1")]
+    assert len(moving) >= 3 and not any(f.alert for f in frames)
+    travelled = [float(f.lines[2].split()[1]) for f in moving]
+    assert travelled == sorted(travelled) and 0.0 < travelled[0] < travelled[-1] <= 275.2
+    # The frames follow the move the env checked: from 1.1 straight to 2.1 in joint space.
+    start, end = result.chosen_run.steps[0].q, result.chosen_run.steps[1].q
+    for f in moving:
+        t = (f.q - start) / (end - start)
+        assert np.allclose(t, t[0], atol=1e-12) and 0.0 < t[0] <= 1.0
+
+
 def test_render_frames_the_arm_not_the_cell():
     env = IKBranchEnv(arm="anthropomorphic", scene="file",
                       scene_file=str(EXAMPLES / "milling_cell.xml"),
@@ -229,8 +250,18 @@ def test_welding_example_plans_through_the_decomposed_fixture(cell, capsys):
     err = capsys.readouterr().err
     assert "not safe to run" in err and "collides" in err
     assert "even dp_oracle finds no collision-free plan" in err
-    hulled = json.loads((cell / "hull.json").read_text())["summary"]["dp_oracle"]
-    assert not hulled["success"] and hulled["collisions"] >= 1
+    hulled = json.loads((cell / "hull.json").read_text())
+    assert not hulled["summary"]["dp_oracle"]["success"]
+    assert hulled["summary"]["dp_oracle"]["collisions"] >= 1
+    # What hit what: the colliding move names its pairs, and they involve the jig's hull
+    # (the channel the decomposition keeps open); the message says so too.
+    (hit,) = [s for s in hulled["planners"]["dp_oracle"]["steps"] if s["collision"]]
+    assert 0.0 <= hit["contact_fraction"] <= 1.0 and hit["contacts"]
+    assert any("jig" in name for pair in hit["contacts"] for name in pair)
+    assert f"collides at {hit['contact_fraction']:.0%} of the move" in err
+    assert " – ".join(hit["contacts"][0]) in err
+    free = [s for s in record["planners"]["dp_oracle"]["steps"]]
+    assert all(s["contacts"] == [] and s["contact_fraction"] is None for s in free)
 
 
 def test_milling_example_equals_the_builtin_cell_and_tool(cell, capsys):
