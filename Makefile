@@ -25,6 +25,7 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/ruff check .
+	$(BIN)/mypy
 	$(WARM_UP)
 	MUJOCO_GL=egl $(BIN)/python -m pytest -q -n 2
 

@@ -14,6 +14,7 @@ import gymnasium as gym
 import numpy as np
 
 from envs.ik_branch_env import IKBranchEnv
+from envs.tasks import Task
 
 
 class Policy(Protocol):
@@ -51,7 +52,7 @@ class Baseline:
 
     def __init__(self, env: gym.Env) -> None:
         self.env = unwrap(env)
-        self._task = None
+        self._task: Task | None = None
         self._last_index = 0
 
     # ------------------------------------------------------------------ SB3 interface
@@ -68,7 +69,9 @@ class Baseline:
         An unbatched observation gives a 0-d action array, a batch of one a (1,) array
         (SB3's convention). The baseline acts on its own env, so larger batches are refused.
         """
-        batched = np.ndim(observation) == len(self.env.observation_space.shape) + 1
+        shape = self.env.observation_space.shape
+        assert shape is not None  # IKBranchEnv's observation space is a Box
+        batched = np.ndim(observation) == len(shape) + 1
         if batched and np.shape(observation)[0] != 1:
             raise ValueError("a baseline acts on the one env it was made with: batch size 1")
         env = self.env
@@ -108,6 +111,7 @@ class Baseline:
         if waypoint == 0:
             return 0
         env = self.env
+        assert env.candidates is not None  # set by reset; ``predict`` refuses to act before
         rows = np.flatnonzero(np.all(env.candidates[waypoint - 1] == env.q, axis=-1))
         if len(rows) == 0:
             raise RuntimeError(f"the arm stands at no candidate of waypoint {waypoint - 1}")
@@ -116,6 +120,7 @@ class Baseline:
     def move_travel(self, waypoint: int) -> np.ndarray:
         """(K,) travel of moving from where the arm stands to each branch of ``waypoint``
         (NaN for invalid ones; zero at a free start): the env's own prices."""
+        assert self.env.ladder is not None  # set by reset; ``predict`` refuses to act before
         return self.env.ladder.travel_from(self.env.q, waypoint)
 
 

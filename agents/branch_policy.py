@@ -23,13 +23,16 @@ that loading a saved model needs no training code.
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Iterator
+from typing import Any, Protocol
 
 import gymnasium as gym
+import numpy as np
 import torch
 from sb3_contrib.common.maskable.policies import MaskableActorCriticPolicy
 from stable_baselines3.common.policies import ActorCriticPolicy
-from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
+from stable_baselines3.common.torch_layers import BaseFeaturesExtractor, MlpExtractor
+from stable_baselines3.common.type_aliases import Schedule
 from torch import nn
 
 from .base import unwrap
@@ -37,6 +40,10 @@ from .base import unwrap
 
 class BranchFeatures(BaseFeaturesExtractor):
     """Per-branch scores (K) followed by the pooled branch embedding (``hidden``)."""
+
+    # Buffers (``register_buffer`` below): observation columns of each branch, and shared.
+    own: torch.Tensor
+    shared: torch.Tensor
 
     def __init__(
         self,
@@ -116,7 +123,7 @@ class BranchFeatures(BaseFeaturesExtractor):
 class _FirstColumns(nn.Module):
     """The action logits are the extractor's first K outputs, unchanged."""
 
-    def __init__(self, count: int) -> None:
+    def __init__(self, count: int | np.integer) -> None:
         super().__init__()
         self.count = count
 
@@ -124,11 +131,31 @@ class _FirstColumns(nn.Module):
         return latent[:, : self.count]
 
 
+class _ActorCritic(Protocol):
+    """What ``_BranchScores`` uses of the SB3 policy it is mixed into (``ActorCriticPolicy``
+    and ``MaskableActorCriticPolicy`` both have it), over IKBranchEnv's ``Discrete(K)``."""
+
+    features_extractor: BaseFeaturesExtractor
+    mlp_extractor: MlpExtractor
+    action_space: gym.spaces.Discrete
+    action_net: nn.Module
+    ortho_init: bool
+    optimizer_class: type[torch.optim.Optimizer]
+    optimizer_kwargs: dict[str, Any]
+    optimizer: torch.optim.Optimizer
+
+    def parameters(self, recurse: bool = True) -> Iterator[nn.Parameter]: ...
+
+
 class _BranchScores:
     """Replaces the action head by the branch scores (the actor's ``net_arch`` is empty)."""
 
-    def _build(self, lr_schedule) -> None:
-        super()._build(lr_schedule)
+    action_net: nn.Module  # the host policy's attribute, which ``_build`` replaces
+
+    def _build(self: _ActorCritic, lr_schedule: Schedule) -> None:
+        # A mixin: ``super()`` is the SB3 policy class it is mixed into (see ``_ActorCritic``),
+        # which mypy cannot see from ``_BranchScores``'s own bases (only ``object``).
+        super()._build(lr_schedule)  # type: ignore[misc]
         if not isinstance(self.features_extractor, BranchFeatures):
             raise ValueError("BranchPolicy needs features_extractor_class=BranchFeatures")
         if self.mlp_extractor.latent_dim_pi != self.features_extractor.features_dim:
@@ -142,7 +169,9 @@ class _BranchScores:
             nn.init.orthogonal_(score.weight, gain=0.01)
             nn.init.zeros_(score.bias)
         # The optimiser was built over the replaced head's parameters: build it again.
-        self.optimizer = self.optimizer_class(
+        # SB3 types the class as type[Optimizer], whose own __init__ takes no ``lr``; every
+        # optimiser it is given (Adam by default) does. SB3's own ``_build`` ignores it too.
+        self.optimizer = self.optimizer_class(  # type: ignore[call-arg]
             self.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs
         )
 

@@ -62,7 +62,9 @@ def ladder_q_tables(edges: Sequence[Edges], allowed: np.ndarray) -> list[np.ndar
 
 
 @njit(cache=True)
-def _backward(reward, terminal, allowed, q):
+def _backward(
+    reward: np.ndarray, terminal: np.ndarray, allowed: np.ndarray, q: np.ndarray
+) -> None:
     """:func:`ladder_q_tables` on stacked (W, K, K) edges (row r of waypoint w: branch r
     of waypoint w − 1) into ``q``, with the same arithmetic, so the same values bit for
     bit."""
@@ -186,6 +188,7 @@ class DPOracle(Baseline):
 
     def on_episode(self) -> None:
         env = self.env
+        assert env.task is not None and env.ladder is not None  # the env was just reset
         self.lazy = LazyLadder(env.ladder)
         _, self.plan = self.lazy.plan(0, env.task.n_waypoints, 0)
         reward, _ = self.lazy.prices()
@@ -199,6 +202,8 @@ class DPOracle(Baseline):
         row = self.current_row(waypoint)
         branch = self._path.get((waypoint, row))
         if branch is None or not mask[branch]:
+            # Both set at the start of the episode (``on_episode``).
+            assert self.lazy is not None and self.env.task is not None
             _, plan = self.lazy.plan(waypoint, self.env.task.n_waypoints, row, mask)
             return plan[0]
         return branch
@@ -226,9 +231,12 @@ class RecedingDP(Baseline):
         self.lazy: LazyLadder | None = None
 
     def on_episode(self) -> None:
+        assert self.env.ladder is not None  # the env was just reset
         self.lazy = LazyLadder(self.env.ladder)
 
     def choose(self, waypoint: int, mask: np.ndarray) -> int:
+        # Both set at the start of the episode (``on_episode``).
+        assert self.lazy is not None and self.env.task is not None
         stop = min(waypoint + self.horizon, self.env.task.n_waypoints)
         _, plan = self.lazy.plan(waypoint, stop, self.current_row(waypoint), mask)
         return plan[0]

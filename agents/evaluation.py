@@ -18,7 +18,7 @@ import numpy as np
 import envs  # noqa: F401  (registers the env ids)
 
 from . import BASELINES, make_baseline
-from .base import Policy
+from .base import Policy, unwrap
 
 ORACLE = "dp_oracle"
 
@@ -40,7 +40,7 @@ class Episode:
 def run_episode(policy: Policy, env: gym.Env, seed: int) -> Episode:
     """Play one episode of ``env`` reset with ``seed``, ``policy`` choosing deterministically."""
     obs, _ = env.reset(seed=seed)
-    base = env.unwrapped
+    base = unwrap(env)
     state, start = None, True
     reward = travel = duration = decision = 0.0
     steps, collision, invalid, success = 0, False, False, False

@@ -41,6 +41,9 @@ class PaperPairRule(Baseline):
 
     def choose(self, waypoint: int, mask: np.ndarray) -> int:
         env = self.env
+        # Set by reset; ``predict`` refuses to act before one.
+        assert env.task is not None and env.ladder is not None
+        assert env.candidates is not None and env.valid is not None
         move = np.where(mask, self.move_travel(waypoint), np.inf)
         if waypoint + 1 >= env.task.n_waypoints:
             return first_within(move)

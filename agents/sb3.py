@@ -76,6 +76,8 @@ class SB3Policy:
             return self.model.predict(observation, state, episode_start, deterministic)
         if action_masks is None and self.env is not None:
             action_masks = self.env.action_masks()
+        # A maskable policy: the model is a MaskablePPO, whose predict takes the masks.
+        assert isinstance(self.model, MaskablePPO)
         return self.model.predict(
             observation, state, episode_start, deterministic, action_masks=action_masks
         )

@@ -33,7 +33,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable
-from types import ModuleType
+from typing import Any
 
 import numpy as np
 
@@ -148,7 +148,9 @@ def kernel_helpers() -> tuple[Callable, ...]:
 
 
 @functools.cache
-def _numba() -> ModuleType | None:
+def _numba() -> Any:
+    # The numba module, or None without numba. Typed Any, not ``types.ModuleType | None``:
+    # this package may import only numpy and the typing modules (test_purity.py).
     try:
         import numba
     except ImportError:  # the numpy path answers every pose, only slower
@@ -163,7 +165,6 @@ def _numba() -> ModuleType | None:
 @functools.cache
 def _shared() -> tuple[Callable, Callable]:
     numba = _numba()
-    assert numba is not None  # only ``_driver`` calls this, once numba has imported
     return numba.njit(pose_status), numba.njit(finish_rows)
 
 
