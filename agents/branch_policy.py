@@ -72,6 +72,8 @@ class BranchFeatures(BaseFeaturesExtractor):
         self.later = 0  # later slots summarised (compact observations)
         if self.compact:
             own.append(index["slot0/travel_out"].view(k, 1))
+            if "slot0/free_travel_out" in index:
+                own.append(index["slot0/free_travel_out"].view(k, 1))
             h = 1
             while f"slot{h}/present" in index:
                 shared.append(index[f"slot{h}/present"])

@@ -91,9 +91,16 @@ class IKBranchEnv(gym.Env):
       invalid), ``valid`` (K), ``endpoint_collision`` (K: the candidate configuration itself
       touches something).
     - Slot 0 also: ``travel`` (K) from the current configuration and ``path_collision`` (K)
-      along the path there. Slots h ≥ 1: ``travel`` (K × K) from every candidate of the
-      waypoint before. The lookahead shows endpoint collisions only; the DP oracle
-      baseline sees every path.
+      along the path there.
+    - ``observation="compact"`` (the default; O(K) values, for arms with hundreds of
+      branches): per branch of every slot ``travel_out``, the least travel to a free
+      branch of the waypoint after; slots h ≥ 1 ``travel_in``, the least travel from a
+      free branch of the waypoint before; slot 0 ``free_travel_out``, the least travel
+      onward along a path the env has checked to be collision-free (1 where none is).
+    - ``observation="ladder"`` (the v0/v1 ids; O(K²)): slots h ≥ 1 carry ``travel``
+      (K × K) from every candidate of the waypoint before.
+    - Beyond slot 0's paths and onward paths the lookahead shows endpoint collisions only;
+      the DP oracle baseline sees every path.
 
     ## Rewards
     Per step, with every weight a constructor argument:
@@ -523,9 +530,12 @@ class IKBranchEnv(gym.Env):
     def _observation(self) -> np.ndarray:
         if self.index >= self.task.n_waypoints:
             return self._observations.observe(self.index, self.q, None, None)
-        return self._observations.observe(
-            self.index, self.q, self.ladder.valid[self.index], self._moves()
-        )
+        valid, moves = self.ladder.valid[self.index], self._moves()
+        onward = None
+        if self._observations.wants_onward:  # from the branches reachable without a hit
+            free = valid & ~np.asarray(moves["collision"], dtype=bool)
+            onward = self.ladder.least_free_travel(self.index, free)
+        return self._observations.observe(self.index, self.q, valid, moves, onward)
 
     # ---------------------------------------------------------------------- pickling
     def __getstate__(self) -> dict:

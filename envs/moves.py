@@ -410,6 +410,40 @@ class TaskMoves:
         origins[1:], usable[1:] = self.candidates[:-1], self.valid[:-1]
         return origins, usable
 
+    def least_free_travel(self, waypoint: int, branches: np.ndarray) -> np.ndarray:
+        """(K,) per branch k of ``waypoint`` where ``branches[k]``: the least travel from
+        it to a branch of the next waypoint along a collision-free path (+inf where there
+        is none, where ``branches`` is False, and at the task's last waypoint).
+
+        Paths are checked cheapest first, one checker call per round for every branch
+        still undecided, until each finds a free one: usually one or two rounds. Targets
+        whose configuration collides are skipped unchecked (a path ends in its target)."""
+        waypoint = int(self._check_waypoint(waypoint))
+        k = self.valid.shape[1]
+        out = np.full(k, np.inf)
+        if waypoint + 1 >= self.n_waypoints:
+            return out
+        here, there = self.candidates[waypoint], self.candidates[waypoint + 1]
+        travel, _ = self.motion(here, waypoint + 1)
+        targets = self.valid[waypoint + 1] & ~self.endpoint_collision[waypoint + 1]
+        travel = np.where(targets[None] & (branches & self.valid[waypoint])[:, None],
+                          travel, np.inf)
+        order = np.argsort(travel, axis=1, kind="stable")
+        tried = np.zeros(k, dtype=np.int64)
+        pending = np.isfinite(travel.min(axis=1))
+        while pending.any():
+            rows = np.flatnonzero(pending)
+            columns = order[rows, tried[rows]]
+            hits = self.pricer.paths_collide(here[rows], there[columns])
+            for row, column, hit in zip(rows, columns, hits, strict=True):
+                if not hit:
+                    out[row], pending[row] = travel[row, column], False
+                    continue
+                tried[row] += 1
+                if tried[row] == k or not np.isfinite(travel[row, order[row, tried[row]]]):
+                    pending[row] = False
+        return out
+
     def travel_from(self, q: np.ndarray, waypoint: int) -> np.ndarray:
         """(K,) travel from configuration ``q`` to each branch of ``waypoint`` (NaN for
         invalid branches; 0 at a free start): what the paper's rule compares."""

@@ -7,17 +7,24 @@ limits and travel to [0, 1] by the largest possible travel:
     ``q`` (dof), ``progress`` (waypoints done / N); for the next waypoint (slot 0) and
     each of ``lookahead`` later ones (slots 1…H): ``present`` (1: within the task),
     ``candidates`` (K × dof, 0 where invalid), ``valid`` (K), ``endpoint_collision`` (K),
-    ``travel_out`` (K: per branch, the least travel to any valid branch of the waypoint
-    after; 1 at the task's last waypoint); slot 0 also ``travel`` (K, from the current
-    configuration) and ``path_collision`` (K, along the path there); slots h ≥ 1 also
-    ``travel_in`` (K: per branch, the least travel from any valid branch of the waypoint
-    before). Travel of and to invalid branches is 1.
+    ``travel_out`` (K: per branch, the least travel to a *free* branch of the waypoint
+    after, i.e. valid and its configuration collision-free; 1 at the task's last
+    waypoint); slot 0 also ``travel`` (K, from the current configuration),
+    ``path_collision`` (K, along the path there) and ``free_travel_out`` (K: per branch,
+    the least travel onward to the waypoint after along a path that is collision-free,
+    checked; 1 where none is, at the last waypoint, and for branches whose own path from
+    the current configuration collides); slots h ≥ 1 also ``travel_in`` (K: per branch,
+    the least travel from a free branch of the waypoint before). Travel of and to invalid
+    branches is 1.
 ``"ladder"`` (size O(K²): the v0/v1 ids)
     As compact without ``travel_out`` and ``travel_in``; instead slots h ≥ 1 carry
     ``travel`` (K × K) from every candidate of the waypoint before.
 
 Everything a task fixes is assembled once per task (:meth:`ObservationBuilder.prepare`);
-each step fills in the configuration and slot 0's travel and path collisions.
+each step fills in the configuration and slot 0's travel, path collisions and (compact)
+onward free travel. The paths behind ``path_collision`` and ``free_travel_out`` are checked
+by the env (through the shared path cache), so a policy's decision time does not include
+them; a planner's (``receding_dp``) includes the checks it makes itself.
 """
 
 from __future__ import annotations
@@ -69,6 +76,8 @@ class ObservationBuilder:
         self._q = slice(*self.layout["q"])
         self._travel0 = slice(*self.layout["slot0/travel"])
         self._path0 = slice(*self.layout["slot0/path_collision"])
+        onward = self.layout.get("slot0/free_travel_out")
+        self._onward0 = None if onward is None else slice(*onward)
         self._templates = np.zeros((1, self.size), dtype=np.float32)
 
     def _layout(self) -> dict[str, tuple[int, int]]:
@@ -79,7 +88,8 @@ class ObservationBuilder:
                       (f"slot{h}/valid", k), (f"slot{h}/endpoint_collision", k)]
             if self.kind == "compact":
                 sizes += [(f"slot{h}/travel_out", k)]
-                sizes += [("slot0/travel", k), ("slot0/path_collision", k)] if h == 0 else [
+                sizes += [("slot0/travel", k), ("slot0/path_collision", k),
+                          ("slot0/free_travel_out", k)] if h == 0 else [
                     (f"slot{h}/travel_in", k)]
                 continue
             sizes += [("slot0/travel", k), ("slot0/path_collision", k)] if h == 0 else [
@@ -140,10 +150,15 @@ class ObservationBuilder:
         leaving, arriving = np.ones((n, k)), np.ones((n, k))
         weights = ladder.pricer.cost.weights
         out_from, out_to = np.empty(k), np.empty(k)
+        free = ladder.valid & ~ladder.endpoint_collision
         for i in range(n - 1):
+            # From every valid branch to the free ones after, and into every valid branch
+            # from the free ones before.
             _least_travel(ladder.candidates[i], ladder.valid[i], ladder.candidates[i + 1],
-                          ladder.valid[i + 1], weights, out_from, out_to)
+                          free[i + 1], weights, out_from, out_to)
             leaving[i] = np.minimum(out_from / self.travel_scale, 1.0)
+            _least_travel(ladder.candidates[i], free[i], ladder.candidates[i + 1],
+                          ladder.valid[i + 1], weights, out_from, out_to)
             arriving[i + 1] = np.minimum(out_to / self.travel_scale, 1.0)
         for h in range(min(self.lookahead, n - 1) + 1):
             rows = n - h  # indices 0 … n − h − 1 see waypoint index + h inside the task
@@ -153,11 +168,17 @@ class ObservationBuilder:
             if h:
                 templates[:rows, slice(*self.layout[f"slot{h}/travel_in"])] = arriving[h:]
 
+    @property
+    def wants_onward(self) -> bool:
+        """The layout has ``slot0/free_travel_out`` (the caller computes it per step)."""
+        return self._onward0 is not None
+
     def observe(self, index: int, q: np.ndarray, valid: np.ndarray | None,
-                moves: dict | None) -> np.ndarray:
+                moves: dict | None, onward: np.ndarray | None = None) -> np.ndarray:
         """The observation at waypoint ``index`` with the arm at ``q``; ``moves`` are the
         terms of every move into waypoint ``index`` (``valid`` its branches), None once the
-        episode is over."""
+        episode is over; ``onward`` (K) the least travel onward along a free path from each
+        branch (``TaskMoves.least_free_travel``; inf where none), for the compact layout."""
         obs = self._templates[index].copy()
         obs[self._q] = np.clip(self.normalise(q), -1.0, 1.0)
         if moves is None:
@@ -165,4 +186,8 @@ class ObservationBuilder:
         travel = np.asarray(moves["travel"]) / self.travel_scale  # invalid branches: 0
         obs[self._travel0] = np.where(valid, np.minimum(travel, 1.0), 1.0)
         obs[self._path0] = moves["collision"]
+        if self._onward0 is not None:
+            if onward is None:
+                raise ValueError("the compact observation needs the onward free travel")
+            obs[self._onward0] = np.minimum(onward / self.travel_scale, 1.0)
         return obs

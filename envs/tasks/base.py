@@ -18,6 +18,9 @@ class FreePredicate(Protocol):
 
     def __call__(self, q: np.ndarray, need: int | None = None) -> np.ndarray: ...
 
+    # Functions and bound methods are: a generator may remember answers per predicate.
+    def __hash__(self) -> int: ...
+
 
 #: Path predicate: q0 (M, dof), q1 (M, dof) -> (M,) bool, True where the linear joint-space
 #: path q0 → q1 is collision-free (the env's path check, the one ``step`` charges).

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from functools import cache
+from functools import cache, lru_cache
 
 import numpy as np
 
@@ -52,26 +52,38 @@ def _parked_configurations(arm: Arm) -> np.ndarray:
     return parked
 
 
+@cache
+def _grip_candidates(arm: Arm) -> tuple[np.ndarray, np.ndarray]:
+    """The IK of every pose of a tool change, per grip: (grips, 2 S + 1, K, dof) solutions
+    and their validity (the slots, the poses above them, the spindle); computed once per
+    arm, read-only."""
+    slots, above, spindle = _cell_poses()
+    poses = np.concatenate([slots, above, spindle[:, None]], axis=1)
+    solutions, valid = arm.ik(poses)
+    solutions.flags.writeable = valid.flags.writeable = False
+    return solutions, valid
+
+
+@lru_cache(maxsize=256)
 def _usable_grips(arm: Arm, is_free: FreePredicate) -> np.ndarray:
     """The grips (indices into ``GRIPS``) with which every pose of a tool change has a
     collision-free branch: in each slot, above it, and in the spindle. The worked
     example's arm, a wrist centre with nothing around it, has both; a real wrist may not
     fit under the spindle holding the tool one way round. ``ValueError`` if none is."""
-    slots, above, spindle = _cell_poses()
-    usable = []
-    for grip in range(len(GRIPS)):
-        poses = np.concatenate([slots[grip], above[grip], spindle[grip][None]])
-        solutions, valid = arm.ik(poses)
-        free = np.zeros_like(valid)
-        if valid.any():
-            free[valid] = is_free(solutions[valid])
-        if free.any(axis=1).all():
-            usable.append(grip)
+    solutions, valid = _grip_candidates(arm)
+    free = np.zeros_like(valid)
+    if valid.any():
+        free[valid] = is_free(solutions[valid])
+    usable = [grip for grip in range(len(GRIPS)) if free[grip].any(axis=-1).all()]
+    # Remembered per (arm, predicate): an env's predicate answers for its one milling cell,
+    # which never changes (this task needs that scene), so the answer holds for its life.
     if not usable:
         raise ValueError(f"{arm.name} cannot change tools in this cell: with either grip some "
                          "slot or the spindle has no collision-free branch (place its base "
                          "elsewhere: scene_options base_pos)")
-    return np.array(usable)
+    grips = np.array(usable)
+    grips.flags.writeable = False
+    return grips
 
 
 def _require_anthropomorphic(arm: Arm, scene: str) -> None:

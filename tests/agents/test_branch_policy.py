@@ -31,7 +31,7 @@ def _permuted(obs: np.ndarray, layout: dict, k: int, dof: int, order: np.ndarray
     for name, width in (("slot0/candidates", dof), ("slot0/valid", 1),
                         ("slot0/endpoint_collision", 1), ("slot0/travel", 1),
                         ("slot0/path_collision", 1), ("slot1/travel", k),
-                        ("slot0/travel_out", 1)):
+                        ("slot0/travel_out", 1), ("slot0/free_travel_out", 1)):
         if name not in layout:
             continue
         where, width = block(name, width)

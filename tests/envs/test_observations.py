@@ -21,8 +21,9 @@ def test_layout_sizes(kind):
     k, dof = base.arm.n_branches, base.arm.dof
     per_slot = 1 + k * dof + 2 * k
     if kind == "compact":
-        # travel_out in every slot; slot 0: travel, path_collision; slots 1, 2: travel_in.
-        expected = dof + 1 + 3 * (per_slot + k) + 2 * k + 2 * k
+        # travel_out in every slot; slot 0: travel, path_collision, free_travel_out;
+        # slots 1, 2: travel_in.
+        expected = dof + 1 + 3 * (per_slot + k) + 3 * k + 2 * k
     else:
         expected = dof + 1 + 3 * per_slot + 2 * k + 2 * k * k
     assert env.observation_space.shape == (expected,)
@@ -52,17 +53,54 @@ def test_compact_travel_summaries_are_the_least_travel(env_id):
         rows = slice(*layout[f"slot{h}/travel_out"])
         if i + 1 < ladder.n_waypoints:
             travel = cost.travel(ladder.candidates[i][:, None], ladder.candidates[i + 1][None])
-            both = ladder.valid[i][:, None] & ladder.valid[i + 1][None]
+            free_after = ladder.valid[i + 1] & ~ladder.endpoint_collision[i + 1]
+            both = ladder.valid[i][:, None] & free_after[None]
             least = np.where(both, travel, np.inf).min(axis=1)
             expected = np.where(np.isfinite(least), np.minimum(least / scale, 1.0), 1.0)
             np.testing.assert_allclose(obs[rows], expected.astype(np.float32), rtol=1e-6)
         if h:
             previous = cost.travel(ladder.candidates[i - 1][:, None], ladder.candidates[i][None])
-            both = ladder.valid[i - 1][:, None] & ladder.valid[i][None]
+            free_before = ladder.valid[i - 1] & ~ladder.endpoint_collision[i - 1]
+            both = free_before[:, None] & ladder.valid[i][None]
             least = np.where(both, previous, np.inf).min(axis=0)
             expected = np.where(np.isfinite(least), np.minimum(least / scale, 1.0), 1.0)
             np.testing.assert_allclose(obs[slice(*layout[f"slot{h}/travel_in"])],
                                        expected.astype(np.float32), rtol=1e-6)
+
+
+@pytest.mark.parametrize("env_id", ["IKBranch/Anthropomorphic-v2", "IKBranch/ToolTransfer-v1",
+                                     "IKBranch/DualRRRPPP-v1", "IKBranch/KukaKR6-v0"])
+def test_free_travel_out_is_the_cheapest_collision_free_continuation(env_id):
+    # Brute force: every path from each slot-0 branch to every branch of the waypoint
+    # after, checked by a separate checker (the loop backend), at every step of episodes
+    # played by random valid actions.
+    from envs.models import CollisionChecker
+
+    env = gym.make(env_id, n_waypoints=4)
+    base = env.unwrapped
+    rng = np.random.default_rng(0)
+    checked = 0
+    for seed in range(3):
+        obs, _ = env.reset(seed=seed)
+        loop = CollisionChecker(base.model, dof=base.arm.dof, backend="loop")
+        done = False
+        while not done:
+            i, ladder, layout = base.index, base.ladder, base.observation_layout
+            onward = obs[slice(*layout["slot0/free_travel_out"])]
+            reachable = ladder.valid[i] & ~obs[slice(*layout["slot0/path_collision"])].astype(bool)
+            for k in range(base.arm.n_branches):
+                expected = np.inf
+                if reachable[k] and i + 1 < ladder.n_waypoints:
+                    ends = ladder.candidates[i + 1][ladder.valid[i + 1]]
+                    free = ~loop.paths_collide(ladder.candidates[i][k], ends)
+                    travel = base.cost.travel(ladder.candidates[i][k], ends)
+                    expected = travel[free].min(initial=np.inf)
+                    checked += 1
+                value = min(expected / base.pricer.travel_scale, 1.0)
+                assert onward[k] == np.float32(value), (seed, i, k)
+            masks = base.action_masks()
+            obs, _, done, _, _ = env.step(int(rng.choice(np.flatnonzero(masks))))
+    assert checked > 10
 
 
 def test_ids_with_models_trained_on_the_ladder_layout_keep_it():
