@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import mujoco
 import numpy as np
 import pytest
 
 from envs.kinematics import ARM_NAMES, make_arm
 from envs.models import TREE_BUILDERS, build_arm_model, build_model, register_tree_builder
+from envs.tools import Tool
 from tests.envs.models.conftest import SINGLE_ARM_NAMES, TWO_ARM_NAMES, scene_cases
 
 N_CONFIGS = 1000
@@ -184,3 +187,86 @@ def test_random_clutter_is_seeded():
     assert np.array_equal(first, layout(3))
     assert not np.array_equal(first, layout(4))
     assert build_model("spherical", "random_clutter", seed=3).ngeom > empty.ngeom
+
+
+# --------------------------------------------------- industrial arms in every scene
+INDUSTRIAL_ARMS = ("kuka_kr6_r700", "abb_irb2400", "abb_irb2600", "abb_irb4600", "ur5e", "ur10e")
+EXAMPLES = Path(__file__).resolve().parents[3] / "examples"
+#: scene case -> (scene, scene kwargs, name prefix of the bodies the scene adds).
+INDUSTRIAL_SCENES = {
+    "empty": ("empty", {}, None),
+    "random_clutter": ("random_clutter", {"seed": 5}, "clutter"),
+    # seed=None: per-episode clutter slots, parked until laid.
+    "random_clutter_slots": ("random_clutter", {"seed": None}, "clutter"),
+    # Any six-DOF arm stands where base_pos/base_rpy put it; the cell moves, the model's
+    # world stays the arm's base frame.
+    "milling_cell": ("milling_cell", {"base_pos": (-1.0, 0.3, 0.0), "base_rpy": (0.0, 0.0, 0.4)},
+                     "mill"),
+    "file_milling_cell": ("file", {"scene_file": EXAMPLES / "milling_cell.xml"}, "scene/"),
+    # Base at the file's arm_base site (moved and turned 5°); decompose="never" writes no
+    # CoACD cache next to the example (the obstacles' shape does not matter here).
+    "file_welding_cell": ("file", {"scene_file": EXAMPLES / "welding_cell.xml",
+                                   "decompose": "never"}, "scene/"),
+}
+#: A two-part tool whose TCP is moved and turned off the flange axis (every component of
+#: the TCP's pose non-trivial).
+OFFSET_TOOL = {
+    "parts": [{"shape": "box", "size": [0.08, 0.06, 0.12]},
+              {"shape": "cylinder", "size": [0.015, 0.25],
+               "offset": {"pos": [0.0, 0.02, 0.12], "rpy": [-0.6, 0.0, 0.0]}}],
+    "tcp": {"pos": [0.01, 0.16, 0.32], "rpy": [-0.6, 0.1, 0.3]},
+}
+
+
+def _beyond_half_turn(arm, n, seed):
+    """n configurations inside the limits with every joint whose limits pass ±π drawn
+    from the part of its range beyond ±π (KUKA's A2 −190°…−180°, A4 ±(180°…185°))."""
+    rng = np.random.default_rng(seed)
+    q = _random_q(arm, n, seed=seed + 1)
+    for joint, (lower, upper) in enumerate(arm.joint_limits):
+        parts = [(lo, hi) for lo, hi in ((lower, -np.pi), (np.pi, upper)) if lo < hi]
+        if not parts:
+            continue
+        for i in range(n):
+            lo, hi = parts[rng.integers(len(parts))]
+            q[i, joint] = rng.uniform(lo, hi)
+    return q
+
+
+def _site_frames(model, dof, q, names):
+    """{site: (N, 4, 4) world pose} for the configurations q (N, dof)."""
+    data = mujoco.MjData(model)
+    ids = {name: model.site(name).id for name in names}
+    out = {name: np.tile(np.eye(4), (len(q), 1, 1)) for name in names}
+    for i, row in enumerate(q):
+        data.qpos[:dof] = row
+        mujoco.mj_kinematics(model, data)
+        for name, site in ids.items():
+            out[name][i, :3, :3] = data.site_xmat[site].reshape(3, 3)
+            out[name][i, :3, 3] = data.site_xpos[site]
+    return out
+
+
+@pytest.mark.parametrize("scene_case", INDUSTRIAL_SCENES)
+@pytest.mark.parametrize("arm_name", INDUSTRIAL_ARMS)
+def test_industrial_ee_and_tcp_sites_are_fk_in_every_scene(arm_name, scene_case):
+    arm = make_arm(arm_name)
+    scene, kwargs, prefix = INDUSTRIAL_SCENES[scene_case]
+    q = np.concatenate([_random_q(arm, 300, seed=12), _beyond_half_turn(arm, 60, seed=13)])
+    # Turns: every joint whose limits pass ±π is sampled beyond it (no wrapping).
+    wide = np.abs(arm.joint_limits).max(axis=1) > np.pi
+    assert wide.any() and np.all((np.abs(q[:, wide]) > np.pi).sum(axis=0) >= 30)
+    expected = arm.fk(q)
+    tool = Tool.from_spec(OFFSET_TOOL)
+    for held in (None, tool):  # the scene's default (the milling cell's built-in tool), ours
+        model = build_arm_model(arm, scene, tool=held, **kwargs)
+        assert model.nq == arm.dof
+        if prefix is not None:
+            bodies = [model.body(b).name for b in range(model.nbody)]
+            assert any(name.startswith(prefix) for name in bodies), bodies
+        sites = ["ee"] if held is None else ["ee", "tcp"]
+        frames = _site_frames(model, arm.dof, q, sites)
+        np.testing.assert_allclose(frames["ee"], expected, rtol=0, atol=1e-9)
+        if held is not None:
+            np.testing.assert_allclose(frames["tcp"], held.tcp_poses(expected), rtol=0,
+                                       atol=1e-9)
