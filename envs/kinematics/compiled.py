@@ -94,12 +94,12 @@ def finish_rows(
     branch's row ``q`` (K, dof) and ``ok`` (K,), K = Kc × Π slots (last joint fastest).
 
     The same floating-point operations as the numpy path, so values agree bitwise given
-    the same raw rows."""
+    the same raw rows. The helpers called in the loops take and return scalars only: with
+    the per-joint and per-branch steps as helpers taking the arrays (numba reference-counts
+    an inlined helper's array arguments), UR5e's 256 branches measured ~20 % slower."""
     kc, dof = raw.shape
     turns = q.shape[0] // kc
-    width = 1
-    for joint in range(dof):
-        width = max(width, slots[joint])
+    width = _slot_width(slots)
     values = np.empty((dof, width))
     inside = np.zeros((dof, width), dtype=np.bool_)
     for closed in range(kc):
@@ -111,17 +111,11 @@ def finish_rows(
                     values[joint, slot] = math.nan
                     inside[joint, slot] = False
                 continue
-            if mode == TURNS:
-                v = v - TWO_PI * np.floor((v - (low - LIMIT_TOL)) / TWO_PI)
-            elif mode != LINEAR:
-                v = v - TWO_PI * np.floor((v + np.pi) / TWO_PI)
+            v = _wrap_joint_value(v, mode, low)
             for slot in range(count):
                 w = v + TWO_PI * slot if count > 1 else v
                 values[joint, slot] = w
-                if mode == WRAPPED_FULL:
-                    inside[joint, slot] = True
-                else:
-                    inside[joint, slot] = w >= low - LIMIT_TOL and w <= high + LIMIT_TOL
+                inside[joint, slot] = _within_limits(w, mode, low, high)
         for turn in range(turns):
             row = closed * turns + turn
             rest, valid = turn, True
@@ -136,6 +130,37 @@ def finish_rows(
             if not valid:
                 for joint in range(dof):
                     q[row, joint] = math.nan
+
+
+def _slot_width(slots: np.ndarray) -> int:
+    """The most turn slots of any joint (at least 1): the width of the per-joint tables."""
+    width = 1
+    for joint in range(len(slots)):
+        width = max(width, slots[joint])
+    return width
+
+
+def _wrap_joint_value(v: float, mode: int, low: float) -> float:
+    """A closed-form joint value moved into its mode's base window: for ``TURNS`` the
+    2π-window starting at the lower limit (less ``LIMIT_TOL``), for other revolute modes
+    [−π, π); a ``LINEAR`` value is kept as it is."""
+    if mode == TURNS:
+        v = v - TWO_PI * np.floor((v - (low - LIMIT_TOL)) / TWO_PI)
+    elif mode != LINEAR:
+        v = v - TWO_PI * np.floor((v + np.pi) / TWO_PI)
+    return v
+
+
+def _within_limits(w: float, mode: int, low: float, high: float) -> bool:
+    """Whether joint value ``w`` is inside [low, high] (within ``LIMIT_TOL``); always, for
+    a full wrapped joint (every value is one of its turns)."""
+    if mode == WRAPPED_FULL:
+        return True
+    return w >= low - LIMIT_TOL and w <= high + LIMIT_TOL
+
+
+#: The helpers of ``finish_rows``, registered with numba to be inlined into it.
+_FINISH_HELPERS = (_slot_width, _wrap_joint_value, _within_limits)
 
 
 def kernel_helpers() -> tuple[Callable, ...]:
@@ -159,6 +184,9 @@ def _numba() -> Any:
 
     for helper in kernel_helpers():
         register_jitable(helper)
+    for helper in _FINISH_HELPERS:
+        # A fresh decorator per helper: register_jitable pops ``inline`` from its options.
+        register_jitable(inline="always")(helper)
     return numba
 
 

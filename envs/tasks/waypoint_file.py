@@ -310,6 +310,15 @@ def _recognise(
     extra_columns: tuple[str, ...],
 ) -> str:
     columns = set(header)
+    fmt = _format_of_columns(path, header, columns, header_place)
+    _check_columns(path, header, columns, fmt, extra_columns, header_place)
+    _check_abc_sources(path, columns, fmt, options, header_place)
+    return fmt
+
+
+def _format_of_columns(path: Path, header: list[str], columns: set[str],
+                       header_place: dict) -> str:
+    """The format the columns name: one rotation kind, or four points, never a mix."""
     present = {fmt: columns & set(cols) for fmt, cols in FORMATS.items()}
     rotations = [fmt for fmt in ("quaternion", "matrix") if columns & set(FORMATS[fmt][3:])]
     if len(rotations) == 2:
@@ -323,16 +332,21 @@ def _recognise(
             **header_place,
         )
     if present["points"]:
-        fmt = "points"
-    elif rotations:
-        fmt = rotations[0]
-    else:
-        raise WaypointFileError(
-            path,
-            f"cannot recognise the format from the columns {', '.join(header)}; expected "
-            + "; ".join(f"{fmt}: {','.join(cols)}" for fmt, cols in FORMATS.items()),
-            **header_place,
-        )
+        return "points"
+    if rotations:
+        return rotations[0]
+    raise WaypointFileError(
+        path,
+        f"cannot recognise the format from the columns {', '.join(header)}; expected "
+        + "; ".join(f"{fmt}: {','.join(cols)}" for fmt, cols in FORMATS.items()),
+        **header_place,
+    )
+
+
+def _check_columns(path: Path, header: list[str], columns: set[str], fmt: str,
+                   extra_columns: tuple[str, ...], header_place: dict) -> None:
+    """Every column of ``fmt`` is present, and no column is neither its own, ``name``,
+    a caller's extra column nor (four-point files) a, b, c."""
     missing = [column for column in FORMATS[fmt] if column not in columns]
     if missing:
         raise WaypointFileError(
@@ -349,25 +363,31 @@ def _recognise(
             path, f"unknown column{'s' * (len(unknown) > 1)} {', '.join(map(repr, unknown))}"
             f" in a {fmt} file{hint}", **header_place,
         )
+
+
+def _check_abc_sources(path: Path, columns: set[str], fmt: str,
+                       options: dict[str, float | None], header_place: dict) -> None:
+    """The a=/b=/c= options only for four-point files, where each of a, b, c comes from
+    exactly one place: its column or its option."""
     given = [key for key in ABC if options[key] is not None]
     if given and fmt != "points":
         raise WaypointFileError(
             path, f"option{'s' * (len(given) > 1)} {', '.join(given)} only apply to "
             "four-point files", **header_place,
         )
-    if fmt == "points":
-        for key in ABC:
-            if key in columns and options[key] is not None:
-                raise WaypointFileError(
-                    path, f"{key} is given both as a column and as an option: keep one",
-                    **header_place,
-                )
-            if key not in columns and options[key] is None:
-                raise WaypointFileError(
-                    path, f"four-point format: {key} (mm) is neither a column nor an option",
-                    **header_place,
-                )
-    return fmt
+    if fmt != "points":
+        return
+    for key in ABC:
+        if key in columns and options[key] is not None:
+            raise WaypointFileError(
+                path, f"{key} is given both as a column and as an option: keep one",
+                **header_place,
+            )
+        if key not in columns and options[key] is None:
+            raise WaypointFileError(
+                path, f"four-point format: {key} (mm) is neither a column nor an option",
+                **header_place,
+            )
 
 
 def _number(path: Path, value: object, column: str, where: dict) -> float:
@@ -521,6 +541,24 @@ def write_waypoints(
     kind = _kind(path)
     if format not in ("matrix", "quaternion"):
         raise ValueError(f"format must be 'matrix' or 'quaternion', got {format!r}")
+    poses = _checked_poses(poses)
+    if names is not None:
+        names = [str(name) for name in names]
+        if len(names) != len(poses):
+            raise ValueError(f"{len(names)} names for {len(poses)} poses")
+    columns = FORMATS[format]
+    rows = [_pose_numbers(pose, format) for pose in poses]
+    if kind == "csv":
+        text = _csv_text(columns, names, rows)
+    else:
+        text = _json_text(columns, names, rows)
+    _write_atomically(path, text)
+    return path
+
+
+def _checked_poses(poses: ArrayLike) -> np.ndarray:
+    """``poses`` as a float (N, 4, 4) array, N ≥ 1, each checked as the reader checks it:
+    finite, bottom row exactly (0, 0, 0, 1), rotation within ``ROTATION_TOL``."""
     poses = np.asarray(poses, dtype=np.float64)
     if poses.ndim != 3 or poses.shape[1:] != (4, 4) or len(poses) == 0:
         raise ValueError(f"poses must have shape (N, 4, 4) with N ≥ 1, got {poses.shape}")
@@ -534,34 +572,39 @@ def write_waypoints(
         if not error <= ROTATION_TOL or np.linalg.det(rotation) <= 0:
             raise ValueError(f"pose {i}: rotation block is not a rotation (|RᵀR − I| = "
                              f"{error:.3g}, tolerance {ROTATION_TOL:g})")
-    if names is not None:
-        names = [str(name) for name in names]
-        if len(names) != len(poses):
-            raise ValueError(f"{len(names)} names for {len(poses)} poses")
-    columns = FORMATS[format]
-    rows = []
-    for pose in poses:
-        if format == "matrix":
-            numbers = [*pose[:3, 3], *pose[:3, :3].ravel()]
-        else:
-            numbers = [*pose[:3, 3], *rotation_to_quaternion(pose[:3, :3])]
-        rows.append([float(value) for value in numbers])
-    header = ([NAME] if names is not None else []) + list(columns)
-    if kind == "csv":
-        buffer = io.StringIO(newline="")
-        writer = csv.writer(buffer, lineterminator="\n")
-        writer.writerow(header)
-        for i, row in enumerate(rows):
-            writer.writerow(([names[i]] if names is not None else []) + [repr(v) for v in row])
-        text = buffer.getvalue()
+    return poses
+
+
+def _pose_numbers(pose: np.ndarray, format: str) -> list[float]:
+    """One file row's numbers (without the name) for ``pose`` in ``format``: the
+    position, then the rotation by rows ("matrix") or as a unit quaternion."""
+    if format == "matrix":
+        numbers = [*pose[:3, 3], *pose[:3, :3].ravel()]
     else:
-        entries = [
-            ({NAME: names[i]} if names is not None else {}) | dict(zip(columns, row, strict=True))
-            for i, row in enumerate(rows)
-        ]
-        text = json.dumps(entries, indent=1, allow_nan=False) + "\n"
-    _write_atomically(path, text)
-    return path
+        numbers = [*pose[:3, 3], *rotation_to_quaternion(pose[:3, :3])]
+    return [float(value) for value in numbers]
+
+
+def _csv_text(columns: tuple[str, ...], names: list[str] | None,
+              rows: list[list[float]]) -> str:
+    """The CSV file: a header row, then one row per pose, floats as shortest repr."""
+    header = ([NAME] if names is not None else []) + list(columns)
+    buffer = io.StringIO(newline="")
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(header)
+    for i, row in enumerate(rows):
+        writer.writerow(([names[i]] if names is not None else []) + [repr(v) for v in row])
+    return buffer.getvalue()
+
+
+def _json_text(columns: tuple[str, ...], names: list[str] | None,
+               rows: list[list[float]]) -> str:
+    """The JSON file: a list of one object per pose (``name`` first when given)."""
+    entries = [
+        ({NAME: names[i]} if names is not None else {}) | dict(zip(columns, row, strict=True))
+        for i, row in enumerate(rows)
+    ]
+    return json.dumps(entries, indent=1, allow_nan=False) + "\n"
 
 
 def rotation_to_quaternion(rotation: ArrayLike) -> np.ndarray:
