@@ -123,6 +123,9 @@ class IKBranchEnv(gym.Env):
     ``reset`` draws a task from the env's ``np_random`` (seed it with ``reset(seed=…)``);
     the arm stands at the task's start configuration. With ``task="paper_transfer"`` the
     arm already stands at position 1: its first step only picks that branch, at no cost.
+    With ``scene="random_clutter"`` and ``scene_seed=None`` every reset first lays a new
+    clutter (its seed drawn from ``np_random`` in ``scene_seeds``, ``info["scene_seed"]``);
+    scenes without clutter ignore ``scene_seed``.
 
     ## Episode end
     Terminates after the last waypoint, on an invalid branch, and on a colliding path when
@@ -150,8 +153,7 @@ class IKBranchEnv(gym.Env):
     joint_weights         None                    per-joint travel weights (None: all 1)
     joint_speeds          None                    per-joint speed limits (None: 1.5 rad/s, 0.5 m/s)
     collision_resolution  0.01                    path-check clearance and step (m)
-    scene_seed            0                       random-clutter seed (None: new every reset;
-                                                  other scenes ignore it)
+    scene_seed            0                       clutter seed (None: new every reset)
     scene_seeds           None                    [lo, hi) of those (None: the training range)
     arm_params            None                    dict of arm parameters (``make_arm``)
     observation           "compact"               "compact" (O(K)) or "ladder" (O(K²), v0/v1)

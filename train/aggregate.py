@@ -50,11 +50,19 @@ def _estimate(scores: dict[str, Any], func, seed: int = 0) -> dict[str, tuple[fl
 
     from rliable import library as rly
 
-    with warnings.catch_warnings():  # arch's note that RandomState is on its way out
-        warnings.simplefilter("ignore", FutureWarning)
-        points, intervals = rly.get_interval_estimates(
-            scores, lambda *x: np.array([func(*x)]), reps=REPS, task_bootstrap=True,
-            random_state=np.random.RandomState(seed))
+    # rliable's StratifiedBootstrap draws its resampling indices from numpy's *global*
+    # generator (np.random.choice), whatever ``random_state`` says: seed that generator
+    # for the call (and put its state back), so the same scores give the same intervals.
+    outer = np.random.get_state()  # noqa: NPY002 (the legacy global one, on purpose)
+    np.random.seed(seed)  # noqa: NPY002
+    try:
+        with warnings.catch_warnings():  # arch's note that RandomState is on its way out
+            warnings.simplefilter("ignore", FutureWarning)
+            points, intervals = rly.get_interval_estimates(
+                scores, lambda *x: np.array([func(*x)]), reps=REPS, task_bootstrap=True,
+                random_state=np.random.RandomState(seed))
+    finally:
+        np.random.set_state(outer)  # noqa: NPY002
     return {name: (float(points[name][0]), float(intervals[name][0][0]),
                    float(intervals[name][1][0])) for name in points}
 
@@ -184,11 +192,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--root", type=Path, default=ROOT / "runs" / "sweep")
     parser.add_argument("--out", type=Path, help="write the aggregate as JSON here")
     parser.add_argument("--publish", action="store_true",
-                        help="copy the representative models and records into models/ and "
-                             "docs/results/sweep/, plot, and render docs/results.md "
-                             "(train/publish.py)")
+                        help="archive the root's finished trials in docs/results/sweep/trials, "
+                             "aggregate the archive, copy the representative models into "
+                             "models/, plot, and render docs/results.md (train/publish.py)")
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
-    records = aggregate(args.root)
+    if args.publish:
+        from train.publish import archive
+        from train.sweep import ARCHIVE
+
+        archive(args.root)
+        records = aggregate(ARCHIVE)
+    else:
+        records = aggregate(args.root)
     for env_id, record in records.items():
         print(f"\n{env_id} ({record['episodes']} held-out tasks)")
         for name, row in record["policies"].items():

@@ -1,7 +1,9 @@
 """Publish a sweep: ``python -m train.aggregate --publish [--root runs/sweep]``.
 
-From the sweep's run directories (``train.sweep``) and their aggregate
-(``train.aggregate``), for every env id with baselines:
+First every finished trial's records are archived in the repository
+(``docs/results/sweep/trials``, :func:`archive`), so sweeps on other machines and in later
+sessions add to them; then, from the archive's aggregate (``train.aggregate``), for every
+env id with baselines:
 
 - ``docs/results/sweep/aggregate.json``: the interval estimates of every policy;
 - per algorithm, the **representative seed** (the one whose mean normalised score is
@@ -25,7 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from train.aggregate import RIVALS
-from train.sweep import env_name, run_dir
+from train.sweep import ARCHIVE, env_name, run_dir
 
 ROOT = Path(__file__).resolve().parent.parent
 SWEEP_RESULTS = ROOT / "docs" / "results" / "sweep"
@@ -87,10 +89,38 @@ def plot_curves(env_id: str, record: dict[str, Any], path: Path) -> bool:
     return True
 
 
+#: What the archive keeps of a finished trial's run directory (no checkpoints, no model:
+#: the representative seed's model goes to ``models/``).
+ARCHIVED = ("evaluation.json", "evaluations.npz", "config.yml", "command.txt", "versions.yml")
+
+
+def archive(root: Path, store: Path = ARCHIVE) -> list[Path]:
+    """Copy every finished trial's records from the sweep root ``root`` into ``store``
+    (the same layout, so ``train.aggregate.aggregate(store)`` reads it); returns the files
+    written. A trial counts as finished once its ``evaluation.json`` exists."""
+    written = []
+    for path in sorted((root / "baselines").glob("*.json")):
+        target = store / "baselines" / path.name
+        target.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(path, target)
+        written.append(target)
+    for done in sorted((root / "runs").glob("*/*/seed*/evaluation.json")):
+        directory = done.parent
+        target = store / directory.relative_to(root)
+        target.mkdir(parents=True, exist_ok=True)
+        for name in ARCHIVED:
+            if (directory / name).exists():
+                shutil.copyfile(directory / name, target / name)
+                written.append(target / name)
+    return written
+
+
 def publish(root: Path, records: dict[str, dict[str, Any]], *, out: Path = SWEEP_RESULTS,
-            models: Path = MODELS) -> list[Path]:
-    """Copy the representative models and records, write the aggregate and the plots;
-    returns the files written."""
+            models: Path = MODELS, store: Path = ARCHIVE) -> list[Path]:
+    """Copy the representative models (from the sweep root ``root``) and records (from
+    the archive ``store``), write the aggregate and the plots; returns the files written.
+    ``FileNotFoundError`` when a representative seed's model is not under ``root`` (it was
+    trained on another machine: train that seed again there, or here, to publish it)."""
     written = []
     out.mkdir(parents=True, exist_ok=True)
     for env_id, record in records.items():
@@ -99,10 +129,16 @@ def publish(root: Path, records: dict[str, dict[str, Any]], *, out: Path = SWEEP
             seed = row.get("representative_seed")
             if seed is None:
                 continue
-            directory = run_dir(root, env_id, algo, seed)
+            trained = run_dir(root, env_id, algo, seed) / "model.zip"
+            if not trained.exists():
+                raise FileNotFoundError(
+                    f"{env_id} {algo}: the representative seed {seed}'s model is not at "
+                    f"{trained}; run `python -m train.sweep --env {env_id} --algo {algo} "
+                    f"--seeds {seed} --archive /nonexistent` to train it again")
+            directory = run_dir(store, env_id, algo, seed)
             model = models / name / f"{algo}.zip"
             model.parent.mkdir(parents=True, exist_ok=True)
-            shutil.copyfile(directory / "model.zip", model)
+            shutil.copyfile(trained, model)
             trial = json.loads((directory / "evaluation.json").read_text())
             trial["command"] = _portable((directory / "command.txt").read_text().strip())
             trial["model"] = str(model.relative_to(models.parent))

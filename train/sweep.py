@@ -16,7 +16,10 @@ Ray starts embedded on this machine's cores unless ``--address`` names an existi
 cluster (``auto``, ``ray://host:10001``; the root must then be storage every node sees).
 A failed trial is retried (``--max-failures``) and continues from its last checkpoint; a
 trial whose ``evaluation.json`` exists is skipped, so running the same command again
-resumes a sweep, across sessions too.
+resumes a sweep. Across machines and sessions: ``python -m train.aggregate --publish``
+archives every finished trial's records (not its checkpoints) in the repository,
+``docs/results/sweep/trials`` (``ARCHIVE``, laid out as a root), and a trial archived
+there is skipped too.
 """
 
 from __future__ import annotations
@@ -32,6 +35,8 @@ from typing import Any
 from train.hyperparams import ALGORITHMS
 
 ROOT = Path(__file__).resolve().parent.parent
+#: Finished trials' records, committed (``train.publish.archive``): a root without models.
+ARCHIVE = ROOT / "docs" / "results" / "sweep" / "trials"
 #: Held-out tasks per evaluation (issue 14: at least 200 per row).
 EPISODES = 200
 BASELINES_TRIAL = "baselines"
@@ -49,12 +54,22 @@ def baselines_path(root: Path, env_id: str) -> Path:
     return Path(root) / "baselines" / f"{env_name(env_id)}.json"
 
 
-def done_path(spec: dict[str, Any]) -> Path:
-    """The file whose existence marks ``spec``'s trial finished (written last, atomically)."""
-    root, env_id = Path(spec["root"]), spec["env_id"]
+def done_path(spec: dict[str, Any], root: Path | None = None) -> Path:
+    """The file whose existence marks ``spec``'s trial finished (written last, atomically),
+    under the spec's root (or ``root``)."""
+    root, env_id = Path(spec["root"] if root is None else root), spec["env_id"]
     if spec["algo"] == BASELINES_TRIAL:
         return baselines_path(root, env_id)
     return run_dir(root, env_id, spec["algo"], int(spec["seed"])) / "evaluation.json"
+
+
+def finished(spec: dict[str, Any]) -> Path | None:
+    """The record of ``spec``'s trial if it is done: in its root, or archived."""
+    for root in (spec["root"], spec.get("archive", ARCHIVE)):
+        path = done_path(spec, root)
+        if path.exists():
+            return path
+    return None
 
 
 def _write_json(path: Path, record: dict) -> None:
@@ -76,10 +91,11 @@ def run_trial(spec: dict[str, Any]) -> dict[str, Any]:
 
     root, env_id, algo = Path(spec["root"]), spec["env_id"], spec["algo"]
     episodes, env_kwargs = spec["episodes"], held_out(env_id, spec.get("env_kwargs"))
+    done = finished(spec)
+    if done is not None:
+        return json.loads(done.read_text())
     if algo == BASELINES_TRIAL:
         target = done_path(spec)
-        if target.exists():
-            return json.loads(target.read_text())
         start = time.perf_counter()
         result = evaluate(env_id, list(BASELINES), episodes, TEST_SEED, env_kwargs=env_kwargs)
         record = {"env": env_id, "kind": BASELINES_TRIAL, "episodes": episodes,
@@ -90,9 +106,6 @@ def run_trial(spec: dict[str, Any]) -> dict[str, Any]:
         return record
     seed = int(spec["seed"])
     directory = run_dir(root, env_id, algo, seed)
-    done = done_path(spec)
-    if done.exists():
-        return json.loads(done.read_text())
     start = time.perf_counter()
     if not (directory / "model.zip").exists():
         resume = (directory / "checkpoints" / LATEST).exists()
@@ -114,7 +127,7 @@ def run_trial(spec: dict[str, Any]) -> dict[str, Any]:
         "policy": result["policies"][model.removesuffix(".zip")],
         "oracle": result["policies"]["dp_oracle"],
     }
-    _write_json(done, record)
+    _write_json(done_path(spec), record)
     return record
 
 
@@ -129,12 +142,13 @@ def _trainable(config: dict[str, Any]) -> None:
 
 def trials(env_ids: list[str], algos: list[str], seeds: list[int], root: Path,
            episodes: int, timesteps: int | None = None,
-           hyperparams: dict | None = None) -> list[dict[str, Any]]:
+           hyperparams: dict | None = None, archive: Path = ARCHIVE) -> list[dict[str, Any]]:
     """The sweep's trials: every env × algorithm × seed, and one baselines trial per env.
     ``timesteps`` and ``hyperparams`` override the config for every trial."""
     specs = []
     for env_id in env_ids:
-        common = {"root": str(root), "env_id": env_id, "episodes": episodes}
+        common = {"root": str(root), "archive": str(archive), "env_id": env_id,
+                  "episodes": episodes}
         specs.append({**common, "algo": BASELINES_TRIAL})
         specs += [{**common, "algo": algo, "seed": seed, "timesteps": timesteps,
                    "hyperparams": hyperparams or {}}
@@ -190,6 +204,8 @@ def parser() -> argparse.ArgumentParser:
                    help="default: every algorithm")
     p.add_argument("--seeds", default="0-4", type=_seeds, help="e.g. 0-4 or 0,2,5 (0-4)")
     p.add_argument("--root", type=Path, default=ROOT / "runs" / "sweep")
+    p.add_argument("--archive", type=Path, default=ARCHIVE,
+                   help="finished trials recorded here are skipped (default: the repository's)")
     p.add_argument("--address", help="an existing Ray cluster (default: embedded Ray)")
     p.add_argument("--timesteps", type=int, help="override every trial's budget")
     p.add_argument("--hyperparams", type=json.loads, default={},
@@ -208,15 +224,18 @@ def main(argv: list[str] | None = None) -> int:
     if unknown:
         parser().error(f"unknown env ids: {', '.join(unknown)}")
     specs = trials(args.envs, args.algos or list(ALGORITHMS), args.seeds, args.root.resolve(),
-                   args.episodes, args.timesteps, args.hyperparams)
-    results = sweep(specs, address=args.address, cpus_per_trial=args.cpus_per_trial,
-                    max_failures=args.max_failures)
+                   args.episodes, args.timesteps, args.hyperparams, args.archive.resolve())
+    pending = [spec for spec in specs if finished(spec) is None]
+    errors = 0
+    if pending:
+        results = sweep(pending, address=args.address, cpus_per_trial=args.cpus_per_trial,
+                        max_failures=args.max_failures)
+        errors = sum(1 for r in results if r.error)
     # Counted on disk: an interrupted sweep's unfinished trials need not report an error.
-    finished = sum(done_path(spec).exists() for spec in specs)
-    errors = sum(1 for r in results if r.error)
-    print(f"{finished} of {len(specs)} trials finished ({errors} ended in an error); run "
+    done = sum(finished(spec) is not None for spec in specs)
+    print(f"{done} of {len(specs)} trials finished ({errors} ended in an error); run "
           f"directories under {args.root / 'runs'}; rerun the same command to resume")
-    return 0 if finished == len(specs) else 1
+    return 0 if done == len(specs) else 1
 
 
 if __name__ == "__main__":

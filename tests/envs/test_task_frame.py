@@ -46,9 +46,14 @@ def test_every_framed_branch_reaches_the_task_pose(arm_name):
 
 
 def test_a_placed_arm_with_a_tool_serves_the_cells_poses():
-    env = IKBranchEnv(arm="abb_irb2600", scene="milling_cell", task="tool_changes",
-                      scene_options=PLACED, tool=TOOL)
+    # The IRB 4600 of IRB4600ToolTransfer-v0: placed between rack and mill, a gripper.
+    import envs
+
+    kwargs = envs.ENV_SPECS["IKBranch/IRB4600ToolTransfer-v0"]
+    assert kwargs["scene_options"]["base_pos"] != [0.0, 0.0, 0.0] and kwargs["tool"]
+    env = IKBranchEnv(**kwargs)
     env.reset(seed=0)
+    assert not env.task_frame.identity
     cell = env.task_frame.from_fk(env.task.poses)  # back in the cell, of the TCP
     # The fourth waypoint of a tool change puts the tool in the spindle: position 2, the
     # tool's axis (the gripper's y) along the spindle's, gripped either way round it.

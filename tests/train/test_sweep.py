@@ -18,8 +18,10 @@ TINY = ['--hyperparams', '{"n_steps": 32, "batch_size": 32, "n_epochs": 1, '
 def test_tiny_sweep_writes_run_directories_and_resumes(tmp_path):
     import ray
 
+    store = tmp_path / "archive"
     argv = ["--env", "IKBranch/ToolTransfer-v1", "--algo", "maskable_ppo", "--seeds", "0-1",
-            "--timesteps", "128", "--episodes", "3", "--root", str(tmp_path), *TINY]
+            "--timesteps", "128", "--episodes", "3", "--root", str(tmp_path),
+            "--archive", str(store), *TINY]
     try:
         assert sweep.main(argv) == 0
         models = {seed: sweep.run_dir(tmp_path, "IKBranch/ToolTransfer-v1", "maskable_ppo",
@@ -38,14 +40,25 @@ def test_tiny_sweep_writes_run_directories_and_resumes(tmp_path):
         assert sweep.main(argv) == 0  # resumed: finished trials are skipped, not retrained
         assert stamps == {seed: (d / "model.zip").stat().st_mtime_ns
                           for seed, d in models.items()}
-        records = aggregate.aggregate(tmp_path)
-        row = records["IKBranch/ToolTransfer-v1"]["policies"]["maskable_ppo"]
-        assert row["runs"] == 2 and row["timesteps"] == [128]
-        # Publishing copies the representative seed's model and record, and renders them.
+        # Archived, the records alone aggregate to the same numbers, and a later sweep
+        # (another root: another machine or session) skips the archived trials.
         from train import publish
 
+        records = aggregate.aggregate(tmp_path)
+        archived = publish.archive(tmp_path, store)
+        assert not any(p.name in ("model.zip", "latest.zip") for p in archived)
+        # (compared as JSON: NaN, e.g. a CI bound over identical scores, equals itself)
+        assert json.dumps(aggregate.aggregate(store)) == json.dumps(records)
+        row = records["IKBranch/ToolTransfer-v1"]["policies"]["maskable_ppo"]
+        assert row["runs"] == 2 and row["timesteps"] == [128]
+        elsewhere = tmp_path / "elsewhere"
+        again = [arg if arg != str(tmp_path) else str(elsewhere) for arg in argv]
+        assert sweep.main(again) == 0 and not (elsewhere / "runs").exists()
+        # Publishing copies the representative seed's model and record, and renders them.
         out, models = tmp_path / "published", tmp_path / "repo" / "models"
-        publish.publish(tmp_path, records, out=out, models=models)
+        publish.publish(tmp_path, records, out=out, models=models, store=store)
+        with pytest.raises(FileNotFoundError, match="representative seed"):
+            publish.publish(elsewhere, records, out=out, models=models, store=store)
         chosen = models / "ToolTransfer-v1" / "maskable_ppo.zip"
         source = sweep.run_dir(tmp_path, "IKBranch/ToolTransfer-v1", "maskable_ppo",
                                row["representative_seed"]) / "model.zip"
@@ -126,3 +139,16 @@ def test_probability_of_improvement_equals_rliables():
         assert probability_of_improvement(x, y) == metrics.probability_of_improvement(x, y)
         z = rng.normal(size=(runs_x, 40))
         assert probability_of_improvement(z, y) == metrics.probability_of_improvement(z, y)
+
+
+def test_intervals_are_reproducible_whatever_numpys_global_state():
+    # rliable resamples with numpy's global generator; the estimates must not depend on it.
+    scores = np.random.default_rng(0).normal(size=(4, 30))
+    np.random.seed(1)  # noqa: NPY002 (the global generator rliable uses)
+    first = aggregate._estimate({"x": scores}, aggregate._iqm)
+    np.random.seed(2)  # noqa: NPY002
+    outer = np.random.get_state()  # noqa: NPY002
+    second = aggregate._estimate({"x": scores}, aggregate._iqm)
+    assert first == second
+    after = np.random.get_state()  # noqa: NPY002
+    assert all(np.array_equal(a, b) for a, b in zip(outer, after, strict=True))
