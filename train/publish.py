@@ -52,12 +52,14 @@ def _percent(value) -> str:
     return f"{point:.1f} % [{low:.1f}, {high:.1f}]"
 
 
-def _portable(command: str) -> str:
-    """A recorded command as a reader types it: ``python -m …`` with repository paths."""
+def _portable(command: str, root: Path) -> str:
+    """A recorded command as a reader types it: ``python -m …``, with the run directory
+    under the default sweep root ``runs/sweep`` (wherever the sweep ``root`` was)."""
     words = command.split()
     if len(words) > 1 and words[1] == "-m":
         words[0] = "python"
-    return " ".join(words).replace(f"{ROOT}/", "")
+    return " ".join(words).replace(f"{Path(root).resolve()}/", "runs/sweep/").replace(
+        f"{ROOT}/", "")
 
 
 def plot_curves(env_id: str, record: dict[str, Any], path: Path) -> bool:
@@ -140,7 +142,7 @@ def publish(root: Path, records: dict[str, dict[str, Any]], *, out: Path = SWEEP
             model.parent.mkdir(parents=True, exist_ok=True)
             shutil.copyfile(trained, model)
             trial = json.loads((directory / "evaluation.json").read_text())
-            trial["command"] = _portable((directory / "command.txt").read_text().strip())
+            trial["command"] = _portable((directory / "command.txt").read_text().strip(), root)
             trial["model"] = str(model.relative_to(models.parent))
             target = out / name / f"{algo}.json"
             target.parent.mkdir(parents=True, exist_ok=True)

@@ -66,6 +66,9 @@ def test_tiny_sweep_writes_run_directories_and_resumes(tmp_path):
         published = json.loads((out / "ToolTransfer-v1" / "maskable_ppo.json").read_text())
         assert published["seed"] == row["representative_seed"]
         assert published["command"].startswith("python -m train --algo maskable_ppo")
+        seed = row["representative_seed"]
+        assert published["command"].endswith(
+            f"--run-dir runs/sweep/runs/ToolTransfer-v1/maskable_ppo/seed{seed}")
         text = "\n".join(publish.render_sweep(out / "aggregate.json"))
         assert "### IKBranch/ToolTransfer-v1" in text
         assert "| maskable_ppo | 2 | 128 |" in text
