@@ -65,29 +65,56 @@ def run_episode(policy: Policy, env: gym.Env, seed: int) -> Episode:
     return Episode(reward, travel, duration, steps, success, collision, invalid, decision)
 
 
+#: The baselines whose spec takes an argument after a colon: name -> (keyword, parse).
+#: A parse raises ValueError for a value it refuses.
+SPEC_ARGUMENTS: dict[str, tuple[str, Any]] = {
+    "random": ("seed", lambda text: _integer(text, 0, "seed")),
+    "receding_dp": ("horizon", lambda text: _integer(text, 1, "horizon")),
+    "fixed": ("branch", str),  # an index or a label: the baseline checks it against the arm
+}
+
+
+def _integer(text: str, minimum: int, what: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = minimum - 1
+    if value < minimum:
+        raise ValueError(f"the argument is a {what} (an integer >= {minimum}), got {text!r}")
+    return value
+
+
+def parse_spec(spec: str) -> tuple[str, dict[str, Any]]:
+    """A baseline spec (``name`` or ``name:argument``) as ``(name, keyword arguments)``,
+    checked without an env: ``ValueError`` for an unknown name, an argument the baseline
+    does not take, or a value it refuses (see :func:`build_policy`)."""
+    name, colon, argument = spec.partition(":")
+    if name not in BASELINES:
+        raise ValueError(f"unknown baseline {name!r}; choose one of {', '.join(BASELINES)}")
+    if not colon:
+        return name, {}
+    if name not in SPEC_ARGUMENTS:
+        raise ValueError(f"baseline {name!r} takes no argument, got {spec!r}")
+    keyword, parse = SPEC_ARGUMENTS[name]
+    return name, {keyword: parse(argument)}
+
+
 def build_policy(spec: str, env: gym.Env, seed: int) -> tuple[str, Policy]:
     """``(name, policy)`` for a command-line spec bound to ``env``.
 
     A spec is a path ending in ``.zip`` (an SB3 model; its name is the path without
     ``.zip``: training writes every run's model as ``model.zip``) or a
-    baseline name with an optional argument after a colon: ``fixed:2`` or
-    ``fixed:back/elbow-up/wrist+`` (the branch), ``receding_dp:4`` (the horizon),
-    ``random:7`` (the generator's seed; default the evaluation seed).
+    baseline name with an optional argument after a colon (``SPEC_ARGUMENTS``):
+    ``fixed:2`` or ``fixed:back/elbow-up/wrist+`` (the branch), ``receding_dp:4`` (the
+    horizon), ``random:7`` (the generator's seed; default the evaluation seed).
     """
     if spec.endswith(".zip"):
         from .sb3 import SB3Policy  # torch is imported only when a model is evaluated
 
         return spec.removesuffix(".zip"), SB3Policy.load(spec, env)
-    name, _, argument = spec.partition(":")
-    kwargs: dict[str, Any] = {}
+    name, kwargs = parse_spec(spec)
     if name == "random":
-        kwargs["seed"] = int(argument) if argument else seed
-    elif name == "fixed" and argument:
-        kwargs["branch"] = argument
-    elif name == "receding_dp" and argument:
-        kwargs["horizon"] = int(argument)
-    elif argument and name in BASELINES:
-        raise ValueError(f"baseline {name!r} takes no argument, got {spec!r}")
+        kwargs.setdefault("seed", seed)
     return spec, make_baseline(name, env, **kwargs)
 
 

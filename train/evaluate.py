@@ -1,13 +1,16 @@
 """Compare policies on the same tasks: ``python -m train.evaluate``.
 
-    python -m train.evaluate --env IKBranch/ToolTransfer-v0 --policy paper_rule \\
-        --policy receding_dp --policy runs/ppo.zip --episodes 50 --seed 0 \\
+    python -m train.evaluate --env IKBranch/ToolTransfer-v1 --policy paper_rule \\
+        --policy receding_dp --policy runs/ppo.zip --episodes 50 \\
         --json results.json --plot results.png
 
 ``--policy`` is repeatable: a baseline name (``paper_rule``, ``paper_pair_rule``,
 ``dp_oracle``, ``receding_dp[:H]``, ``random[:SEED]``, ``fixed[:BRANCH]``) or an SB3 model
 zip (PPO or MaskablePPO, recognised from the file). The DP oracle always runs: the
-optimality gap is measured against it. Episode e of every policy uses task seed S + e.
+optimality gap is measured against it. Episode e of every policy uses task seed S + e;
+S defaults to ``envs.seeds.TEST_SEED``, beyond every training run's tasks, and an id that
+draws a clutter per episode plays held-out scenes (``HELD_OUT_SCENES``) unless
+``--env-kwargs`` sets ``scene_seeds``.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from agents.evaluation import evaluate
+from envs.seeds import TEST_SEED, held_out
 
 COLUMNS = (
     ("policy", "{}"),
@@ -95,7 +99,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--policy", action="append", required=True, dest="policies",
                         help="baseline name or SB3 model .zip (repeatable)")
     parser.add_argument("--episodes", type=int, default=20)
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=int, default=TEST_SEED,
+                        help=f"first task seed (default {TEST_SEED}: held out from training)")
     parser.add_argument("--json", type=Path, help="write the results here")
     parser.add_argument("--plot", type=Path, help="draw the comparison here (.png)")
     args = parser.parse_args(argv)
@@ -109,7 +114,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 def main(argv: list[str] | None = None) -> dict[str, Any]:
     args = parse_args(argv)
     try:
-        results = evaluate(args.env, args.policies, args.episodes, args.seed, args.env_kwargs)
+        results = evaluate(args.env, args.policies, args.episodes, args.seed,
+                           held_out(args.env, args.env_kwargs))
     except ValueError as error:  # unknown policy, bad zip, mismatched env: a usage error
         raise SystemExit(f"error: {error}") from error
     print(table(results))

@@ -50,7 +50,7 @@ from typing import Any
 import numpy as np
 
 from agents import BASELINES
-from agents.evaluation import ORACLE
+from agents.evaluation import ORACLE, parse_spec
 
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_UNSAFE = 0, 1, 2, 3
 #: The planner names ``--planner`` takes besides ``MODEL.zip``: the baselines
@@ -744,21 +744,10 @@ def _planner(spec: str) -> str:
         if not Path(spec).is_file():
             raise PlanInputError(f"--planner {spec}: no such model file")
         return spec
-    name, _, argument = spec.partition(":")
-    if name not in PLANNERS:
-        raise PlanInputError(f"--planner {spec!r}: unknown planner; choose one of "
-                             f"{', '.join(PLANNERS)} or a model .zip")
-    if argument and name in ("dp_oracle", "paper_rule", "paper_pair_rule"):
-        raise PlanInputError(f"--planner {spec!r}: {name} takes no argument")
-    if argument and name in ("receding_dp", "random"):
-        try:
-            value = int(argument)
-        except ValueError:
-            value = -1
-        if value < (1 if name == "receding_dp" else 0):
-            what = "horizon (an integer >= 1)" if name == "receding_dp" else \
-                "seed (an integer >= 0)"
-            raise PlanInputError(f"--planner {spec!r}: the argument is a {what}")
+    try:
+        parse_spec(spec)
+    except ValueError as exc:
+        raise PlanInputError(f"--planner {spec!r}: {exc} (or give a model .zip)") from None
     return spec
 
 

@@ -105,3 +105,28 @@ def test_bad_policies_fail_before_anything_runs(tmp_path):
         main(["--env", ENV, "--policy", str(not_a_model)])
     with pytest.raises(SystemExit, match="takes no argument"):
         main(["--env", ENV, "--policy", "paper_rule:3"])
+
+
+def test_cli_defaults_to_held_out_tasks_and_scenes(tmp_path):
+    out = tmp_path / "r.json"
+    main(["--env", "IKBranch/Cartesian-v2", "--env-kwargs", '{"n_waypoints": 3}',
+          "--policy", "paper_rule", "--episodes", "2", "--json", str(out)])
+    results = json.loads(out.read_text())
+    from envs.seeds import HELD_OUT_SCENES, TEST_SEED
+
+    assert results["seed"] == TEST_SEED
+    assert results["env_kwargs"]["scene_seeds"] == list(HELD_OUT_SCENES)
+
+
+def test_baseline_specs_are_checked_without_an_env():
+    from agents.evaluation import parse_spec
+
+    assert parse_spec("paper_rule") == ("paper_rule", {})
+    assert parse_spec("receding_dp:4") == ("receding_dp", {"horizon": 4})
+    assert parse_spec("random:7") == ("random", {"seed": 7})
+    assert parse_spec("fixed:back/elbow-up/wrist+") == ("fixed", {"branch": "back/elbow-up/wrist+"})
+    for spec, message in (("magic", "unknown baseline"), ("paper_rule:3", "takes no argument"),
+                          ("dp_oracle:", "takes no argument"), ("receding_dp:0", "horizon"),
+                          ("receding_dp:x", "horizon"), ("random:-1", "seed")):
+        with pytest.raises(ValueError, match=message):
+            parse_spec(spec)
