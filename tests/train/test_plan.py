@@ -108,7 +108,11 @@ def replay(csv_path, json_path) -> None:
         cumulative += info["travel"]
         assert [row[name] for name in names] == [repr(float(v)) for v in env.q]
         assert [float(row[name]) for name in names] == env.q.tolist()
-        assert [float(row[f"{name}_deg"]) for name in names] == np.degrees(env.q).tolist()
+        for name, kind, value in zip(names, env.arm.joint_types, env.q, strict=True):
+            if kind == "prismatic":  # millimetres beside the metres
+                assert float(row[f"{name}_mm"]) == value * 1000.0 and f"{name}_deg" not in row
+            else:
+                assert float(row[f"{name}_deg"]) == np.degrees(value)
         assert row["label"] == env.arm.branch_labels[int(row["branch"])]
         assert float(row["travel_rad"]) == info["travel"]
         assert float(row["time_s"]) == info["time"]
@@ -120,6 +124,19 @@ def replay(csv_path, json_path) -> None:
     assert total == reported
     steps = record["planners"][record["chosen"]]["steps"]
     assert sum(step["reward"] for step in steps) == reported  # the JSON's steps agree
+
+
+def test_a_plan_for_an_arm_with_prismatic_joints_gives_millimetres(tmp_path, capsys):
+    # The Cartesian gantry: three slides (m, and mm in the extra columns), a Y-X-Y wrist.
+    generated = IKBranchEnv(arm="cartesian", scene="empty", task="random", n_waypoints=3)
+    generated.reset(seed=4)
+    path = write_waypoints(tmp_path / "gantry.csv", generated.task.poses, format="quaternion")
+    out, record = tmp_path / "plan.csv", tmp_path / "plan.json"
+    assert main(["--arm", "cartesian", "--waypoints", str(path), "--out", str(out),
+                 "--json", str(record)]) == EXIT_OK
+    header = next(csv.reader(out.open()))
+    assert {"s1", "s1_mm", "s2_mm", "s3_mm", "phi1", "phi1_deg"} <= set(header)
+    replay(out, record)
 
 
 # ------------------------------------------------------------------------ round trip
