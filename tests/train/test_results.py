@@ -88,7 +88,8 @@ def judged_success(env: gym.Env, policy: SB3Policy, seed: int, checker_backend: 
     clearance to anything, by a collision checker of its own (``checker_backend``)."""
     obs, _ = env.reset(seed=seed)
     base = env.unwrapped
-    assert base.task_frame.identity, "published ids pose the arm's own fk frame"
+    # The task's poses as the env solves them: of the fk frame in the base frame (a task in
+    # a cell, of a tool's TCP, is mapped there at reset; envs/task_frame.py).
     arm, poses = base.arm, base.task.poses
     checker = CollisionChecker(base.model, dof=arm.dof, resolution=base.pricer.checker.resolution,
                                backend=checker_backend)
