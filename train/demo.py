@@ -114,12 +114,14 @@ def main(argv: list[str] | None = None) -> int:
     }
     print(table(results))
     (args.run_dir / "evaluation.json").write_text(json.dumps(results, indent=2) + "\n")
+    written = ["evaluation.json", "comparison.png"]
     plot(results, args.run_dir / "comparison.png")
-    if (args.run_dir / "evaluations.npz").exists():
+    if (args.run_dir / "evaluations.npz").exists():  # none before the first evaluation
         learning_curve(args.run_dir, args.run_dir / "learning_curve.png")
+        written.append("learning_curve.png")
     episode_gif(model, DEMO_SEED, args.run_dir / "episode.gif")
-    print(f"\nWrote evaluation.json, comparison.png, learning_curve.png and episode.gif to "
-          f"{args.run_dir}/")
+    written.append("episode.gif")
+    print(f"\nWrote {', '.join(written)} to {args.run_dir}/")
     return 0
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 import tomllib
@@ -90,3 +91,26 @@ def test_python_m_forms_still_run():
         result = subprocess.run([sys.executable, "-m", module, "--help"], capture_output=True,
                                 text=True, timeout=120)
         assert result.returncode == 0 and "usage:" in result.stdout
+
+
+def test_the_demo_runs_end_to_end_on_a_tiny_budget(tmp_path, capsys):
+    # make demo's pipeline: the worked example, training, the evaluation table, the plots
+    # and the GIF (rendered for real), on a budget of one rollout.
+    from train import demo
+
+    run = tmp_path / "demo"
+    assert demo.main(["--run-dir", str(run), "--timesteps", "256", "--episodes", "2"]) == 0
+    printed = capsys.readouterr().out
+    assert "275.15" in printed and "maskable_ppo" in printed and "dp_oracle" in printed
+    results = json.loads((run / "evaluation.json").read_text())
+    assert results["env"] == demo.ENV_ID and results["episodes"] == 2
+    assert set(results["policies"]) == {"maskable_ppo", *demo.DEMO_BASELINES}
+    for name in ("comparison.png", "episode.gif", "model.zip"):
+        assert (run / name).stat().st_size > 0, name
+    # No held-out evaluation ran within one rollout: no learning curve, and none claimed.
+    assert not (run / "learning_curve.png").exists()
+    assert "Wrote evaluation.json, comparison.png, episode.gif to" in printed
+    import imageio.v3 as iio
+
+    frames = iio.imread(run / "episode.gif", index=None)
+    assert frames.ndim == 4 and len(frames) >= demo.FRAMES_PER_MOVE and frames.std() > 10
