@@ -12,7 +12,9 @@ Per env id and policy, from every trial's ``evaluation.json`` and the id's basel
   task, as an IQM with CI.
 - **Success rate** with a stratified-bootstrap 95 % CI.
 - **Probability of improvement** of each learned policy over ``paper_rule`` and over
-  ``receding_dp`` on the normalised scores, with its CI.
+  ``receding_dp`` on the normalised scores, with its CI; and per policy the fraction of
+  informative runs × tasks on which it attains the optimum (``optimal``): a rival optimal
+  on a fraction f of the tasks can be beaten with probability at most 1 − f/2.
 - **Learning curves**: held-out return during training, mean over each round's tasks,
   the IQM across seeds with a bootstrap band.
 
@@ -160,6 +162,9 @@ def summarise(root: Path, env_id: str, entry: dict[str, Any]) -> dict[str, Any]:
         if informative.any():
             score = (returns[:, informative] - random[informative]) / span[informative]
             row["score"] = _estimate({"x": score}, _iqm)["x"]
+            # How often the policy attains the optimum (score 1 up to rounding): where a
+            # rival always does, no policy can beat it (P(improvement) at most 0.5).
+            row["optimal"] = float(np.mean(score >= 1.0 - 1e-9))
             run["score"] = score
         row.update(budgets.get(name, {}))
         result["policies"][name] = row
@@ -194,7 +199,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--publish", action="store_true",
                         help="archive the root's finished trials in docs/results/sweep/trials, "
                              "aggregate the archive, copy the representative models into "
-                             "models/, plot, and render docs/results.md (train/publish.py)")
+                             "models/, plot, and render docs/results.md and the README's "
+                             "results table (train/publish.py)")
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
     if args.publish:
         from train.publish import archive
@@ -215,11 +221,11 @@ def main(argv: list[str] | None = None) -> int:
     if args.out:
         args.out.write_text(json.dumps(records, indent=1) + "\n")
     if args.publish:
-        from train.publish import publish
+        from train.publish import publish, write_readme
         from train.results import write_results
 
         written = publish(args.root, records)
-        print(f"published {len(written)} files; {write_results()}")
+        print(f"published {len(written)} files; {write_results()}; {write_readme(records)}")
     return 0
 
 

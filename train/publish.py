@@ -16,7 +16,8 @@ env id with baselines:
   during training, IQM across seeds with its 95 % band);
 
 then ``docs/results.md`` is rendered again (``train.results.render``), this sweep's
-tables first.
+tables first, and the README's results table (between ``README_BEGIN`` and
+``README_END``) is written from the same aggregate (:func:`write_readme`).
 """
 
 from __future__ import annotations
@@ -32,6 +33,10 @@ from train.sweep import ARCHIVE, env_name, run_dir
 ROOT = Path(__file__).resolve().parent.parent
 SWEEP_RESULTS = ROOT / "docs" / "results" / "sweep"
 MODELS = ROOT / "models"
+README = ROOT / "README.md"
+#: The README's generated results table sits between these two lines.
+README_BEGIN = "<!-- results: written by python -m train.aggregate --publish; do not edit -->"
+README_END = "<!-- /results -->"
 #: The learned policies' rivals in the goal checks (issue 14).
 PAPER_RULE, RECEDING_DP = RIVALS
 #: Ids whose goal is success ≥ 99 % and an IQM gap ≤ 2 % on held-out scenes.
@@ -166,9 +171,13 @@ def goal_lines(records: dict[str, dict[str, Any]]) -> list[str]:
                 continue
             low = row["improvement"][PAPER_RULE][1]
             verdict = "met" if low > 0.5 else "**not met**"
+            optimal = policies[PAPER_RULE].get("optimal")
+            ceiling = ("" if optimal is None else
+                       f" (paper_rule attains the optimum on {optimal:.1%} of the tasks: "
+                       f"P can be at most {1 - optimal / 2:.3f})")
             lines.append(f"- {env_name(env_id)} {algo}: P(improvement over paper_rule) "
                          f"{_interval(row['improvement'][PAPER_RULE])}, CI above 0.5: "
-                         f"{verdict}")
+                         f"{verdict}{ceiling}")
             if env_id in HEADLINE_GOALS:
                 success, gap = row["success"][0], row["gap"][0]
                 verdict = "met" if success >= 0.99 and gap <= 0.02 else "**not met**"
@@ -249,3 +258,45 @@ def render_sweep(aggregate_path: Path = SWEEP_RESULTS / "aggregate.json") -> lis
             lines += ["", f"![{env_id}](results/sweep/{plot.name})"]
         lines.append("")
     return lines
+
+
+def readme_summary(records: dict[str, dict[str, Any]]) -> list[str]:
+    """The README's results table: per id, each learned policy beside paper_rule and
+    receding_dp (the full tables are docs/results.md's)."""
+    lines = ["| id | policy | seeds × steps | score IQM | success | gap IQM | "
+             "P(> paper_rule) | ms/decision |",
+             "|---|---|---|---|---|---|---|---:|"]
+    for env_id, record in records.items():
+        policies = record["policies"]
+        learned = [algo for algo, row in policies.items() if row.get("seeds")]
+        first = True
+        for policy in (*learned, PAPER_RULE, RECEDING_DP):
+            row = policies.get(policy)
+            if row is None:
+                continue
+            budget = (f"{row['runs']} × {row['timesteps'][0]:,}" if row.get("seeds")
+                      else "")
+            improvement = row.get("improvement", {}).get(PAPER_RULE)
+            lines.append(
+                f"| {env_name(env_id) if first else ''} | {policy} | {budget} | "
+                f"{_interval(row.get('score'))} | {_percent(row['success'])} | "
+                f"{_percent(row['gap'])} | {_interval(improvement, '{:.2f}')} | "
+                f"{row['decision_ms']:.2f} |")
+            first = False
+    return lines
+
+
+def write_readme(records: dict[str, dict[str, Any]], readme: Path = README) -> Path:
+    """Replace the README's lines between ``README_BEGIN`` and ``README_END`` with
+    :func:`readme_summary`; ``ValueError`` when the markers are missing or out of order."""
+    lines = readme.read_text().split("\n")
+    try:
+        begin, end = lines.index(README_BEGIN), lines.index(README_END)
+    except ValueError:
+        raise ValueError(f"{readme}: the results markers {README_BEGIN!r} and "
+                         f"{README_END!r} must each stand on a line of their own") from None
+    if end < begin:
+        raise ValueError(f"{readme}: {README_END!r} comes before {README_BEGIN!r}")
+    lines[begin + 1:end] = readme_summary(records)
+    readme.write_text("\n".join(lines))
+    return readme

@@ -72,6 +72,14 @@ def test_tiny_sweep_writes_run_directories_and_resumes(tmp_path):
         text = "\n".join(publish.render_sweep(out / "aggregate.json"))
         assert "### IKBranch/ToolTransfer-v1" in text
         assert "| maskable_ppo | 2 | 128 |" in text
+        # The README's table is rewritten between its markers, the rest kept.
+        readme = tmp_path / "README.md"
+        readme.write_text(f"# title\n{publish.README_BEGIN}\nold\n{publish.README_END}\nend\n")
+        publish.write_readme(records, readme)
+        lines = readme.read_text().split("\n")
+        assert lines[:2] == ["# title", publish.README_BEGIN] and "old" not in lines
+        assert lines[-3:] == [publish.README_END, "end", ""]
+        assert "| ToolTransfer-v1 | maskable_ppo | 2 × 128 |" in lines[4]
     finally:
         ray.shutdown()
 
@@ -120,11 +128,30 @@ def test_aggregation_recovers_known_iqm_intervals_and_improvement(tmp_path):
     assert learned["improvement"]["paper_rule"] == pytest.approx((1.0, 1.0, 1.0))
     # ... and never beats receding_dp's 1.0.
     assert learned["improvement"]["receding_dp"][0] == pytest.approx(0.0)
+    assert learned["optimal"] == np.mean(scores >= 1.0) == 0.0
+    assert record["policies"]["receding_dp"]["optimal"] == 1.0
+    assert record["policies"]["paper_rule"]["optimal"] == 0.0
     success = (scores > 0.5).mean()
     assert learned["success"][1] <= success <= learned["success"][2]
     per_run = scores.mean(axis=1)
     assert learned["representative_seed"] == int(np.argmin(np.abs(per_run - point)))
     assert learned["timesteps"] == [1000] and learned["train_minutes"] == 1.5
+
+
+def test_a_rival_optimal_on_some_tasks_caps_the_probability_of_improvement(tmp_path):
+    # paper_rule attains the optimum on a quarter of the tasks, the learned policy on all:
+    # it beats the rule on the other three quarters and ties on that quarter.
+    rival = np.full(200, 0.2)
+    rival[:50] = 1.0
+    env = _synthetic_root(tmp_path, np.ones((2, 200)), rival=rival)
+    records = aggregate.aggregate(tmp_path)
+    policies = records[env]["policies"]
+    assert policies["paper_rule"]["optimal"] == 0.25 and policies["ppo"]["optimal"] == 1.0
+    assert policies["ppo"]["improvement"]["paper_rule"][0] == pytest.approx(1 - 0.25 / 2)
+    from train.publish import goal_lines
+
+    line = next(line for line in goal_lines(records) if "P(improvement" in line)
+    assert "attains the optimum on 25.0% of the tasks: P can be at most 0.875" in line
 
 
 def test_probability_of_improvement_equals_rliables():
@@ -155,3 +182,16 @@ def test_intervals_are_reproducible_whatever_numpys_global_state():
     assert first == second
     after = np.random.get_state()  # noqa: NPY002
     assert all(np.array_equal(a, b) for a, b in zip(outer, after, strict=True))
+
+
+@pytest.mark.parametrize("text", ["no markers\n",
+                                  "<!-- /results -->\n<!-- results: written by python -m "
+                                  "train.aggregate --publish; do not edit -->\n"])
+def test_the_readme_table_needs_its_markers_in_order(tmp_path, text):
+    from train import publish
+
+    readme = tmp_path / "README.md"
+    readme.write_text(text)
+    with pytest.raises(ValueError, match=r"README\.md"):
+        publish.write_readme({}, readme)
+    assert readme.read_text() == text

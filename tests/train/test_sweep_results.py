@@ -13,7 +13,7 @@ import pytest
 from agents.evaluation import run_episode
 from agents.sb3 import SB3Policy
 from tests.train.test_results import judged_success
-from train.publish import MODELS, SWEEP_RESULTS
+from train.publish import MODELS, README, README_BEGIN, README_END, SWEEP_RESULTS, readme_summary
 
 AGGREGATE = SWEEP_RESULTS / "aggregate.json"
 #: Episodes replayed per model (of the 200 published): the first ones, in order.
@@ -46,6 +46,12 @@ def test_the_sweep_is_published_with_its_models():
         assert policy["success_rate"] == pytest.approx(np.mean(policy["successes"]), abs=1e-12)
         assert policy["mean_return"] == pytest.approx(np.mean(policy["returns"]), abs=1e-9)
         assert np.all(np.array(policy["returns"]) <= np.array(trial["oracle"]["returns"]) + 1e-9)
+
+
+def test_the_readme_shows_the_published_aggregate():
+    lines = README.read_text().split("\n")
+    table = lines[lines.index(README_BEGIN) + 1:lines.index(README_END)]
+    assert table == readme_summary(json.loads(AGGREGATE.read_text()))
 
 
 @pytest.mark.regression
