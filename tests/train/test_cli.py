@@ -114,3 +114,11 @@ def test_the_demo_runs_end_to_end_on_a_tiny_budget(tmp_path, capsys):
 
     frames = iio.imread(run / "episode.gif", index=None)
     assert frames.ndim == 4 and len(frames) >= demo.FRAMES_PER_MOVE and frames.std() > 10
+    # With a checkpoint that won a validation round, the demo evaluates and films that one
+    # (the final model.zip, made unreadable here, is not touched).
+    (run / "best").mkdir(exist_ok=True)
+    (run / "best" / "best_model.zip").write_bytes((run / "model.zip").read_bytes())
+    (run / "best" / "best.json").write_text('{"best_mean_reward": -20.0, "timesteps": 128}')
+    (run / "model.zip").write_bytes(b"not a model")
+    assert demo.main(["--run-dir", str(run), "--timesteps", "256", "--episodes", "2"]) == 0
+    assert "best validation return: 128 steps" in capsys.readouterr().out
