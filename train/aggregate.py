@@ -203,11 +203,13 @@ def main(argv: list[str] | None = None) -> int:
                              "results table (train/publish.py)")
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
     if args.publish:
-        from train.publish import archive
+        from train.publish import SWEEP_RESULTS, archive, carry_over
         from train.sweep import ARCHIVE
 
         archive(args.root)
-        records = aggregate(ARCHIVE)
+        published = SWEEP_RESULTS / "aggregate.json"
+        records = carry_over(aggregate(ARCHIVE), json.loads(published.read_text())
+                             if published.exists() else {})
     else:
         records = aggregate(args.root)
     for env_id, record in records.items():

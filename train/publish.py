@@ -15,6 +15,8 @@ env id with baselines:
 - ``docs/results/sweep/<EnvName>.png``: learning curves (held-out validation return
   during training, IQM across seeds with its 95 % band);
 
+Learned rows of the previous ``aggregate.json`` whose trials the archive does not hold are
+kept (:func:`carry_over`), so publishing one id's sweep leaves the others' rows as they were;
 then ``docs/results.md`` is rendered again (``train.results.render``), this sweep's
 tables first, and the README's results table (between ``README_BEGIN`` and
 ``README_END``) is written from the same aggregate (:func:`write_readme`).
@@ -122,6 +124,57 @@ def archive(root: Path, store: Path = ARCHIVE) -> list[Path]:
     return written
 
 
+#: Marks a learned row taken from the previous aggregate (:func:`carry_over`).
+CARRIED_OVER = "carried_over"
+#: What a baseline row must keep for a carried-over row's comparisons to still hold.
+_BASELINE_FIELDS = ("runs", "success", "gap", "mean_return", "decision_ms", "score")
+
+
+def _as_json(value: Any) -> Any:
+    return json.loads(json.dumps(value))
+
+
+def carry_over(fresh: dict[str, dict[str, Any]],
+               published: dict[str, dict[str, Any]]) -> dict[str, dict[str, Any]]:
+    """``fresh`` (the archive's aggregate) with the learned rows it lacks taken from
+    ``published`` (the previous ``aggregate.json``), each marked ``carried_over``.
+
+    A row is carried over only where the archive holds none of its trials (so a sweep
+    that adds one id, or a session whose archive lost trials, does not erase the rows it
+    did not re-run), and only where the id's baselines aggregate to exactly the published
+    ones: the row's probabilities of improvement were computed against those scores.
+    ``ValueError`` otherwise. An id without archived baselines keeps its published record.
+    """
+    merged = {}
+    for env_id in sorted(set(fresh) | set(published)):
+        record, old = fresh.get(env_id), published.get(env_id)
+        if record is None or old is None:
+            merged[env_id] = record if old is None else old
+            continue
+        missing = [name for name in old["policies"] if name not in record["policies"]]
+        for name in missing:
+            if not old["policies"][name].get("seeds"):
+                raise ValueError(f"{env_id}: the published baseline {name} is not in the "
+                                 "archive's baselines")
+        if missing:
+            for name, row in record["policies"].items():
+                if row.get("seeds"):
+                    continue
+                before = old["policies"].get(name, {})
+                changed = [key for key in _BASELINE_FIELDS
+                           if _as_json(row.get(key)) != _as_json(before.get(key))]
+                if changed:
+                    raise ValueError(
+                        f"{env_id}: baseline {name} differs from the published one in "
+                        f"{changed}; the published {missing} rows were compared with the old "
+                        "baselines: re-run their trials (python -m train.sweep) to publish")
+            record = {**record, "policies": {
+                **record["policies"],
+                **{name: {**old["policies"][name], CARRIED_OVER: True} for name in missing}}}
+        merged[env_id] = record
+    return merged
+
+
 def publish(root: Path, records: dict[str, dict[str, Any]], *, out: Path = SWEEP_RESULTS,
             models: Path = MODELS, store: Path = ARCHIVE) -> list[Path]:
     """Copy the representative models (from the sweep root ``root``) and records (from
@@ -134,7 +187,7 @@ def publish(root: Path, records: dict[str, dict[str, Any]], *, out: Path = SWEEP
         name = env_name(env_id)
         for algo, row in record["policies"].items():
             seed = row.get("representative_seed")
-            if seed is None:
+            if seed is None or row.get(CARRIED_OVER):  # its model and record stay as they are
                 continue
             trained = run_dir(root, env_id, algo, seed) / "model.zip"
             if not trained.exists():
@@ -251,8 +304,12 @@ def render_sweep(aggregate_path: Path = SWEEP_RESULTS / "aggregate.json") -> lis
             trial = out / name / f"{policy}.json"
             if row.get("seeds") and trial.exists():
                 data = json.loads(trial.read_text())
+                carried = (" (carried over from an earlier publish: its trials' records are "
+                           "not in the archive, so this row is not re-aggregated)"
+                           if row.get(CARRIED_OVER) else "")
                 lines.append(f"- {policy}: seeds {row['seeds']}, representative seed "
-                             f"{data['seed']} (`{data['model']}`): `{data['command']}`")
+                             f"{data['seed']} (`{data['model']}`): `{data['command']}`"
+                             f"{carried}")
         plot = out / f"{name}.png"
         if plot.exists():
             lines += ["", f"![{env_id}](results/sweep/{plot.name})"]

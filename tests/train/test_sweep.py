@@ -195,3 +195,57 @@ def test_the_readme_table_needs_its_markers_in_order(tmp_path, text):
     with pytest.raises(ValueError, match=r"README\.md"):
         publish.write_readme({}, readme)
     assert readme.read_text() == text
+
+
+def test_publishing_keeps_the_learned_rows_whose_trials_the_archive_does_not_hold(tmp_path):
+    # A sweep that adds one id (or an archive that lost trials) must not erase the rows
+    # it did not re-run: they are carried over, marked, and their models left alone.
+    from train import publish
+
+    env = _synthetic_root(tmp_path / "full", np.full((2, 20), 0.9), rival=np.full(20, 0.2))
+    published = aggregate.aggregate(tmp_path / "full")
+    baselines_only = tmp_path / "baselines_only"
+    (baselines_only / "baselines").mkdir(parents=True)
+    path = sweep.baselines_path(tmp_path / "full", env)
+    (baselines_only / "baselines" / path.name).write_text(path.read_text())
+    fresh = aggregate.aggregate(baselines_only)
+    assert "ppo" not in fresh[env]["policies"]
+    other = {"env": "IKBranch/Other-v0", "policies": {}}
+    merged = publish.carry_over(fresh, {**published, other["env"]: other})
+    assert merged["IKBranch/Other-v0"] == other
+    row = dict(merged[env]["policies"]["ppo"])
+    assert row.pop(publish.CARRIED_OVER) is True
+    assert row == published[env]["policies"]["ppo"]
+    assert merged[env]["policies"]["paper_rule"] == fresh[env]["policies"]["paper_rule"]
+    # publish() copies no model for a carried-over row (there is none under the root).
+    written = publish.publish(baselines_only, merged, out=tmp_path / "out",
+                              models=tmp_path / "models", store=baselines_only)
+    assert not (tmp_path / "models").exists()
+    assert json.loads((tmp_path / "out" / "aggregate.json").read_text()) == json.loads(
+        json.dumps(merged))
+    assert tmp_path / "out" / "aggregate.json" in written
+    # A fresh row replaces the published one; nothing is carried over where trials exist.
+    assert publish.carry_over(published, published) == published
+
+
+def test_a_row_is_not_carried_over_onto_other_baselines(tmp_path):
+    from train import publish
+
+    env = _synthetic_root(tmp_path, np.full((2, 20), 0.9), rival=np.full(20, 0.2))
+    published = aggregate.aggregate(tmp_path)
+    fresh = json.loads(json.dumps(published))
+    del fresh[env]["policies"]["ppo"]
+    fresh[env]["policies"]["paper_rule"]["mean_return"] += 1.0
+    with pytest.raises(ValueError, match=r"paper_rule differs .* re-run their trials"):
+        publish.carry_over(fresh, published)
+
+
+def test_the_trial_archive_is_committed_not_ignored():
+    # A root-level "runs/" rule once matched docs/results/sweep/trials/runs: every archived
+    # trial stayed out of git, and the next checkout could not re-aggregate them.
+    import subprocess
+
+    probe = sweep.run_dir(sweep.ARCHIVE, "IKBranch/ToolTransfer-v1", "ppo", 0) / "evaluation.json"
+    result = subprocess.run(["git", "check-ignore", "--no-index", "-q", str(probe)],
+                            cwd=sweep.ROOT, check=False)
+    assert result.returncode == 1, f"{probe} is ignored by .gitignore"
