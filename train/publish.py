@@ -134,15 +134,23 @@ def _as_json(value: Any) -> Any:
     return json.loads(json.dumps(value))
 
 
+def _fewer_seeds(row: dict[str, Any], published: dict[str, Any]) -> bool:
+    """Whether ``row`` aggregates a strict subset of the seeds ``published`` did: a sweep
+    still re-running a row's seeds does not shrink the published row."""
+    seeds, before = set(row.get("seeds") or ()), set(published.get("seeds") or ())
+    return bool(seeds) and seeds < before
+
+
 def carry_over(fresh: dict[str, dict[str, Any]],
                published: dict[str, dict[str, Any]]) -> dict[str, dict[str, Any]]:
     """``fresh`` (the archive's aggregate) with the learned rows it lacks taken from
     ``published`` (the previous ``aggregate.json``), each marked ``carried_over``.
 
-    A row is carried over only where the archive holds none of its trials (so a sweep
-    that adds one id, or a session whose archive lost trials, does not erase the rows it
-    did not re-run), and only where the id's baselines aggregate to exactly the published
-    ones: the row's probabilities of improvement were computed against those scores.
+    A row is carried over where the archive holds none of its trials or only some of its
+    seeds (so a sweep that adds one id, a sweep still under way, or a session whose
+    archive lost trials, does not erase or shrink the rows it did not re-run), and only
+    where the id's baselines aggregate to exactly the published ones: the row's
+    probabilities of improvement were computed against those scores.
     ``ValueError`` otherwise. An id without archived baselines keeps its published record.
     """
     merged = {}
@@ -151,7 +159,8 @@ def carry_over(fresh: dict[str, dict[str, Any]],
         if record is None or old is None:
             merged[env_id] = record if old is None else old
             continue
-        missing = [name for name in old["policies"] if name not in record["policies"]]
+        missing = [name for name in old["policies"] if name not in record["policies"]
+                   or _fewer_seeds(record["policies"][name], old["policies"][name])]
         for name in missing:
             if not old["policies"][name].get("seeds"):
                 raise ValueError(f"{env_id}: the published baseline {name} is not in the "

@@ -228,6 +228,23 @@ def test_publishing_keeps_the_learned_rows_whose_trials_the_archive_does_not_hol
     assert publish.carry_over(published, published) == published
 
 
+def test_a_sweep_still_rerunning_a_rows_seeds_does_not_shrink_it(tmp_path):
+    import shutil
+
+    from train import publish
+
+    env = _synthetic_root(tmp_path, np.array([np.full(20, 0.9), np.full(20, 0.5)]),
+                          rival=np.full(20, 0.2))
+    published = aggregate.aggregate(tmp_path)
+    shutil.rmtree(sweep.run_dir(tmp_path, env, "ppo", 1))
+    fresh = aggregate.aggregate(tmp_path)
+    assert fresh[env]["policies"]["ppo"]["seeds"] == [0]
+    merged = publish.carry_over(fresh, published)
+    assert merged[env]["policies"]["ppo"] == {**published[env]["policies"]["ppo"],
+                                              publish.CARRIED_OVER: True}
+    assert list(merged[env]["policies"]) == list(published[env]["policies"])
+
+
 def test_a_row_is_not_carried_over_onto_other_baselines(tmp_path):
     from train import publish
 
