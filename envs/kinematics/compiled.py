@@ -13,10 +13,13 @@ Why: on one pose the batched numpy solvers pay numpy's per-call overhead (~1 µs
   singular, boundary and unreachable poses.
 
 The numpy solvers stay the reference: every batch goes through them, and so do single
-poses when numba is missing (``single_pose_solver`` returns None). Results agree to 1e-12,
-not bitwise: numpy's float64 ``arctan2`` and ``arccos`` are its own SIMD loops, which differ
-from the C library's ``atan2``/``acos`` (used by numba and by ``math``) by one ulp on a few
-percent of inputs (measured: 2.8 % of atan2, 9.4 % of acos calls over 10⁶ random inputs).
+poses when numba is missing (``single_pose_solver`` returns None). The kernels do the
+numpy solvers' arithmetic in the same order, so with numpy's own SIMD transcendentals off
+the two agree bit for bit on every arm whose numpy solver does not multiply rotations with
+matmul/einsum (tested in a subprocess). In numpy's default build they agree to 1e-12:
+its AVX-512 float64 ``arctan2`` and ``arccos`` loops differ from the C library's
+``atan2``/``acos`` (used by numba and by ``math``) by one ulp on a few percent of inputs
+(measured: 2.8 % of atan2, 9.4 % of acos calls over 10⁶ random inputs).
 
 Why numba and not a pure-Python scalar path: numba is the project's compiled-kernel tool
 and ships wheels for every platform numpy does. The pure-Python twin of the

@@ -69,7 +69,8 @@ def _cylindrical_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
     c, s = math.cos(-phi1), math.sin(-phi1)
     w00, w01, w02 = c * m[0, 0] - s * m[1, 0], c * m[0, 1] - s * m[1, 1], c * m[0, 2] - s * m[1, 2]
     w11 = s * m[0, 1] + c * m[1, 1]
-    put_wrist_rows(out, 0, z, phi1, np.hypot(x, y), w00, w01, w02, w11, m[2, 0], m[2, 1], m[2, 2])
+    radial = math.sqrt(x * x + y * y)  # as the numpy solver forms it (not hypot)
+    put_wrist_rows(out, 0, z, phi1, radial, w00, w01, w02, w11, m[2, 0], m[2, 1], m[2, 2])
 
 
 CylindricalArm._kernel = staticmethod(_cylindrical_kernel)

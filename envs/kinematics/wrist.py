@@ -66,7 +66,11 @@ def wrist_branches(
         folded = r11 < 0.0
         a = np.where(singular, 0.5 * np.arctan2(np.where(folded, -r02, r02), r00), a)
         b = np.where(singular, np.where(folded, np.pi, 0.0), b)
-        ca, sa = np.cos(a), np.sin(a)
+        # Only the singular rows take cos/sin of the split angle; the others keep the
+        # ratios R21/sin b, R01/sin b, so a pose's branches do not depend on the rest of its batch.
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ca = np.where(singular, np.cos(a), r21 / sin_b)
+            sa = np.where(singular, np.sin(a), r01 / sin_b)
         shift = np.where(singular, 0.0, np.pi)  # the flipped branch is the same configuration
     else:
         # (cos a, sin a) is column 1's (R21, R01) normalised: no trigonometry needed.

@@ -154,7 +154,7 @@ def test_batch_shapes_broadcast(arm):
     np.testing.assert_array_equal(one_valid[0], valid[1, 2])
     # A bare (4, 4) pose takes the compiled single-pose path: the same branches, the same
     # values to 1e-12 (numpy's SIMD arctan2/arccos and the C library's differ by an ulp;
-    # test_single_pose.py covers degenerate poses).
+    # test_single_pose.py covers degenerate poses and the bitwise comparison).
     single, single_valid = arm.ik(pose[1, 2])
     np.testing.assert_array_equal(single_valid, valid[1, 2])
     np.testing.assert_allclose(single, solutions[1, 2], rtol=0, atol=1e-12)

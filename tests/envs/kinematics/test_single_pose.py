@@ -2,14 +2,23 @@
 
 One mechanism serves every arm: a bare (4, 4) pose goes through the arm's scalar kernel,
 compiled by numba, and the shared checks and limit/turn reduction. It must give the same
-branches as ``ik_batched`` (the numpy reference): the same validity exactly, the same values
-to 1e-12. Not bitwise: numpy's float64 arctan2/arccos are its own SIMD loops and differ
-from the C library's (used by numba) by an ulp on a few percent of inputs. Where a value
-sits on the wrap cut ±π of a seed joint, an ulp decides between −π and π (the same joint
-angle in the seeds' [−π, π) convention); that is the one difference allowed.
+branches as ``ik_batched`` (the numpy reference). Bit for bit wherever both run the same
+arithmetic: with numpy's own SIMD transcendentals switched off (its float64 arctan2/arccos
+loops for AVX-512 differ from the C library's, which numba and ``math`` call, by an ulp on a
+few percent of inputs), every arm whose numpy solver does not go through matmul/einsum
+agrees exactly (``test_with_numpys_simd_transcendentals_off_…``). In the default numpy
+build the values agree to 1e-12 and the validity exactly; where a value sits on the wrap
+cut ±π of a seed joint, an ulp decides between −π and π (the same joint angle in the seeds'
+[−π, π) convention); that is the one difference allowed.
 """
 
 from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -154,3 +163,62 @@ def test_arms_pickle_after_a_single_pose_call():
     arm.ik(arm.fk(arm.home))
     again = pickle.loads(pickle.dumps(arm))
     np.testing.assert_array_equal(again.ik(arm.fk(arm.home))[1], arm.ik(arm.fk(arm.home))[1])
+
+
+#: Arms whose numpy solver multiplies rotations with matmul/einsum (their own summation
+#: order and FMA): their kernels write the products out and agree to an ulp, not bitwise.
+MATMUL_SOLVERS = ("cylindrical4", "dual_rrp_rpp", "dual_rrr_ppp", "dual_ppr_prr")
+ROOT = Path(__file__).resolve().parents[3]
+_BITWISE_SCRIPT = """
+import json, numpy as np
+from numpy.lib import introspect
+from envs.kinematics import make_arm
+from tests.envs.kinematics.test_single_pose import target_poses
+names = {names!r}
+current = {{f: info["current"] for f, sigs in introspect.opt_func_info(
+    func_name="^(arctan2|arccos|sin|cos)$", signature="float64").items()
+    for info in sigs.values()}}
+differ = {{}}
+for name in names:
+    arm = make_arm(name)
+    poses = target_poses(arm)
+    batched, batched_ok = arm.ik_batched(poses)
+    differ[name] = sum(
+        not (np.array_equal(ok, expected_ok) and np.array_equal(q, expected, equal_nan=True))
+        for (q, ok), expected, expected_ok in zip(map(arm.ik, poses), batched, batched_ok))
+print(json.dumps({{"current": current, "differ": differ}}))
+"""
+
+
+@pytest.mark.parametrize("name", ARM_NAMES)
+def test_a_poses_branches_do_not_depend_on_the_rest_of_its_batch(name):
+    # The wrist solver once took cos/sin of atan2 for every pose of a batch holding one
+    # wrist-singular pose (and the exact ratios otherwise): a pose's branches then moved by
+    # an ulp with the company it was solved in.
+    arm = make_arm(name)
+    poses = target_poses(arm)
+    batched, batched_ok = arm.ik_batched(poses)
+    for pose, expected, expected_ok in zip(poses, batched, batched_ok, strict=True):
+        alone, alone_ok = arm.ik_batched(pose[None])
+        np.testing.assert_array_equal(alone_ok[0], expected_ok)
+        np.testing.assert_array_equal(alone[0], expected)
+
+
+def test_with_numpys_simd_transcendentals_off_the_compiled_path_is_bitwise_the_numpy_path():
+    from numpy.lib import introspect
+
+    # The dispatch targets above numpy's baseline that this machine offers these ufuncs
+    # (none on a machine without AVX2): switched off in a fresh interpreter.
+    targets = introspect.opt_func_info(func_name="^(arctan2|arccos|sin|cos)$",
+                                       signature="float64")
+    active = {target for sigs in targets.values() for info in sigs.values()
+              for target in info["available"].split() if not target.startswith("baseline")}
+    names = [name for name in ARM_NAMES if name not in MATMUL_SOLVERS]
+    env = {**os.environ, "NPY_DISABLE_CPU_FEATURES": " ".join(sorted(active)),
+           "PYTHONPATH": str(ROOT)}
+    result = subprocess.run([sys.executable, "-c", _BITWISE_SCRIPT.format(names=names)],
+                            env=env, cwd=ROOT, capture_output=True, text=True, check=False)
+    assert result.returncode == 0, result.stderr[-2000:]
+    report = json.loads(result.stdout.strip().splitlines()[-1])
+    assert all(target.startswith("baseline") for target in report["current"].values()), report
+    assert report["differ"] == dict.fromkeys(names, 0)
