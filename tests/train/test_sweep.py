@@ -245,6 +245,42 @@ def test_a_sweep_still_rerunning_a_rows_seeds_does_not_shrink_it(tmp_path):
     assert list(merged[env]["policies"]) == list(published[env]["policies"])
 
 
+def test_publishing_again_keeps_a_reproduced_representative_and_writes_nothing_half(tmp_path):
+    from train import publish
+
+    root = tmp_path / "root"
+    env = _synthetic_root(root, np.array([np.full(20, 0.9), np.full(20, 0.5)]),
+                          rival=np.full(20, 0.2))
+    records = aggregate.aggregate(root)
+    seed = records[env]["policies"]["ppo"]["representative_seed"]
+    trial = sweep.run_dir(root, env, "ppo", seed)
+    (trial / "command.txt").write_text("python -m train --seed 0\n")
+    out, models = tmp_path / "out", tmp_path / "models"
+    # A representative whose model is missing: an error before any file is written.
+    with pytest.raises(FileNotFoundError, match="representative seed"):
+        publish.publish(root, records, out=out, models=models, store=root)
+    assert not out.exists() and not models.exists()
+    (trial / "model.zip").write_bytes(b"trained")
+    publish.publish(root, records, out=out, models=models, store=root)
+    model = models / "ToolTransfer-v1" / "ppo.zip"
+    record = out / "ToolTransfer-v1" / "ppo.json"
+    assert model.read_bytes() == b"trained"
+    first = record.read_text()
+    # The same seed re-run elsewhere (its model not under this root, its wall times new):
+    # the committed model and record stay.
+    (trial / "model.zip").unlink()
+    evaluation = json.loads((trial / "evaluation.json").read_text())
+    evaluation["train_minutes"] = 99.0
+    (trial / "evaluation.json").write_text(json.dumps(evaluation))
+    publish.publish(root, aggregate.aggregate(root), out=out, models=models, store=root)
+    assert model.read_bytes() == b"trained" and record.read_text() == first
+    # Another outcome of that seed is a new trial: its model is needed again.
+    evaluation["policy"]["returns"][0] -= 1.0
+    (trial / "evaluation.json").write_text(json.dumps(evaluation))
+    with pytest.raises(FileNotFoundError):
+        publish.publish(root, aggregate.aggregate(root), out=out, models=models, store=root)
+
+
 def test_a_row_is_not_carried_over_onto_other_baselines(tmp_path):
     from train import publish
 
