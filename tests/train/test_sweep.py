@@ -57,8 +57,13 @@ def test_tiny_sweep_writes_run_directories_and_resumes(tmp_path):
         # Publishing copies the representative seed's model and record, and renders them.
         out, models = tmp_path / "published", tmp_path / "repo" / "models"
         publish.publish(tmp_path, records, out=out, models=models, store=store)
+        # From a root without the models: fine where they are published already, an error
+        # (before any file is written) where they are not.
+        publish.publish(elsewhere, records, out=out, models=models, store=store)
         with pytest.raises(FileNotFoundError, match="representative seed"):
-            publish.publish(elsewhere, records, out=out, models=models, store=store)
+            publish.publish(elsewhere, records, out=tmp_path / "other",
+                            models=tmp_path / "other_models", store=store)
+        assert not (tmp_path / "other").exists() and not (tmp_path / "other_models").exists()
         chosen = models / "ToolTransfer-v1" / "maskable_ppo.zip"
         source = sweep.run_dir(tmp_path, "IKBranch/ToolTransfer-v1", "maskable_ppo",
                                row["representative_seed"]) / "model.zip"
