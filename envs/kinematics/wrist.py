@@ -61,20 +61,18 @@ def wrist_branches(
     a = np.arctan2(r01, r21)
     singular = sin_b < WRIST_SINGULAR_TOL
     shift: float | np.ndarray = np.pi
+    # (cos a, sin a) is column 1's (R21, R01) normalised: no trigonometry needed. Singular
+    # rows (sin b ≈ 0) are replaced below, each row on its own, so a pose's branches do not
+    # depend on the rest of its batch.
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ca, sa = r21 / sin_b, r01 / sin_b
     if np.any(singular):
         # cos b = ±1 here: a ± c = atan2(±R02, R00); split the free angle evenly.
         folded = r11 < 0.0
         a = np.where(singular, 0.5 * np.arctan2(np.where(folded, -r02, r02), r00), a)
         b = np.where(singular, np.where(folded, np.pi, 0.0), b)
-        # Only the singular rows take cos/sin of the split angle; the others keep the
-        # ratios R21/sin b, R01/sin b, so a pose's branches do not depend on the rest of its batch.
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ca = np.where(singular, np.cos(a), r21 / sin_b)
-            sa = np.where(singular, np.sin(a), r01 / sin_b)
+        ca, sa = np.where(singular, np.cos(a), ca), np.where(singular, np.sin(a), sa)
         shift = np.where(singular, 0.0, np.pi)  # the flipped branch is the same configuration
-    else:
-        # (cos a, sin a) is column 1's (R21, R01) normalised: no trigonometry needed.
-        ca, sa = r21 / sin_b, r01 / sin_b
     c = np.arctan2(ca * r02 - sa * r22, ca * r00 - sa * r20)
     # The flipped branch is (a + π, −b, c + π), kept inside [−π, π].
     flipped_a = np.where(a > 0.0, a - shift, a + shift)
