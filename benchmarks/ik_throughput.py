@@ -1,17 +1,17 @@
 """IK throughput per arm: poses/s on batches of 100k, cost per returned solution, and
-single-pose latency through the compiled path and through the numpy solver.
+single-pose latency.
 
     python benchmarks/ik_throughput.py [--batch 100000] [--repeats 5] [--arm NAME ...]
 
-Prints a Markdown table (best of ``--repeats``; the machines are shared and noisy). Run it
-single-threaded for the per-core figure: numpy's element-wise kernels are single-threaded,
-and OMP/OPENBLAS threads are pinned to 1 below for the small matrix products.
+Prints a Markdown table (best of ``--repeats``; the machines are shared and noisy). Batches
+and single poses go through the same compiled driver (``envs/kinematics/compiled.py``), one
+core. The first IK call of the process is timed apart and printed below the table: it
+loads the compiled driver from numba's on-disk cache, or compiles it (about 7 s) when the
+cache is cold.
 
 Columns: K branches (closed-form × turn windows); valid branches per pose on poses of
 random configurations inside the limits; batched poses/s; ns per returned (valid)
-solution; single-pose latency of ``arm.ik(pose)`` for one (4, 4) pose (the numba-compiled
-path, ``envs/kinematics/compiled.py``; its one-off compilation is excluded and printed
-below the table) and of the numpy solver on the same pose (``arm.ik_batched``).
+solution; single-pose latency of ``arm.ik(pose)`` for one (4, 4) pose.
 """
 
 from __future__ import annotations
@@ -27,6 +27,7 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 from envs.kinematics import ARM_NAMES, make_arm  # noqa: E402
+from envs.kinematics.compiled import compiled_solve_poses  # noqa: E402
 
 
 def best_time(function, repeats: int) -> float:
@@ -48,10 +49,13 @@ def main() -> None:
     args = parser.parse_args()
 
     rng = np.random.default_rng(0)
+    start = time.perf_counter()
+    first = make_arm("cartesian")
+    first.ik(first.fk(first.home))
+    first_call = time.perf_counter() - start
     print(f"| arm | K | valid / pose | batch poses/s ({args.batch:,}) | ns / solution | "
-          "single pose (µs) | single pose, numpy (µs) |")
-    print("|---|---:|---:|---:|---:|---:|---:|")
-    compile_seconds = {}
+          "single pose (µs) |")
+    print("|---|---:|---:|---:|---:|---:|")
     for name in args.arm or ARM_NAMES:
         arm = make_arm(name)
         q = rng.uniform(arm.joint_limits[:, 0], arm.joint_limits[:, 1], (args.batch, arm.dof))
@@ -59,30 +63,22 @@ def main() -> None:
         _, valid = arm.ik(poses)
         batch_seconds = best_time(lambda poses=poses, arm=arm: arm.ik(poses), args.repeats)
         singles = poses[: args.single_calls]
-        start = time.perf_counter()
-        arm.ik(singles[0])  # compiles the arm's kernel on first use
-        compile_seconds[name] = time.perf_counter() - start
 
         def single_calls(arm=arm, singles=singles):
             for pose in singles:
                 arm.ik(pose)
 
-        def numpy_calls(arm=arm, singles=singles[:200]):
-            for pose in singles:
-                arm.ik_batched(pose[None])
-
         single_seconds = best_time(single_calls, args.repeats) / len(singles)
-        numpy_seconds = best_time(numpy_calls, args.repeats) / len(singles[:200])
         per_pose = valid.sum() / args.batch
         print(
             f"| {name} | {arm.n_branches} | {per_pose:.1f} | {args.batch / batch_seconds:,.0f} | "
-            f"{batch_seconds / valid.sum() * 1e9:.0f} | {single_seconds * 1e6:.1f} | "
-            f"{numpy_seconds * 1e6:.1f} |"
+            f"{batch_seconds / valid.sum() * 1e9:.0f} | {single_seconds * 1e6:.1f} |"
         )
+    stats = compiled_solve_poses().stats
+    source = "loaded from the on-disk cache" if sum(stats.cache_hits.values()) else "compiled"
     print()
-    print("First single-pose call (numba compilation, once per arm class and process): "
-          + ", ".join(f"{name} {seconds:.2f} s" for name, seconds in compile_seconds.items()))
-
+    print(f"First IK call of the process: {first_call:.2f} s (numba import and the driver "
+          f"{source}; once per process, every arm)")
 
 if __name__ == "__main__":
     main()

@@ -1,6 +1,7 @@
 """Closed-form kinematics of the papers' arms and of real industrial arms (the OPW family,
-Universal Robots): pure numpy, no I/O, no RNG, no state; single poses optionally through
-numba-compiled kernels (``compiled.py``).
+Universal Robots): no RNG, no state. FK in numpy; IK as one scalar kernel per arm behind
+one driver, compiled with numba on the first IK call (cached on disk; ``compiled.py``),
+interpreted where numba is missing.
 
 Contract (``arm.Arm``; every arm is held to it by ``tests/envs/kinematics/test_arms.py``):
 ``make_arm(name, **params)`` returns a frozen arm with ``fk(q) -> (…, 4, 4)`` and

@@ -25,7 +25,7 @@ import numpy as np
 
 from .arm import REVOLUTE, Arm, array_default
 from .rotations import homogeneous, rot_x, rot_z
-from .wrist import put_wrist_rows, with_positioning, wrist_branches, wrist_rotation
+from .wrist import put_wrist_rows, wrist_rotation
 
 _DEG = np.pi / 180.0
 
@@ -88,65 +88,6 @@ class AnthropomorphicArm(Arm):
         rotation = rot_z(phi1) @ rot_x(phi23) @ wrist_rotation(q[..., 3], q[..., 4], q[..., 5])
         return homogeneous(rotation, position)
 
-    def _ik_candidates(self, pose: np.ndarray) -> list[np.ndarray]:
-        # Trigonometry is the cost on big batches: cos/sin of φ1, φ3 and φ2 + φ3 come from
-        # the geometry (normalised vectors) instead of np.cos/np.sin of the angles.
-        x, y, z = pose[..., 0, 3], pose[..., 1, 3], pose[..., 2, 3]
-        horizontal = np.sqrt(x * x + y * y)
-        on_axis = horizontal < ON_AXIS_TOL
-        phi1_front = np.where(on_axis, 0.0, np.arctan2(-x, y))
-        safe = np.where(on_axis, 1.0, horizontal)
-        cos1, sin1 = np.where(on_axis, 1.0, y / safe), np.where(on_axis, 0.0, -x / safe)
-
-        reach = horizontal[..., None] * _SHOULDER_SIGN  # signed reach in the arm plane
-        height = (z - self.l1)[..., None]
-        cos3 = (reach * reach + height * height - self.l2**2 - self.l3**2) / (
-            2.0 * self.l2 * self.l3
-        )
-        cos3 = np.where(np.abs(cos3) <= 1.0 + REACH_TOL, np.clip(cos3, -1.0, 1.0), np.nan)
-        cos3 = cos3[..., None]  # (…, shoulder, 1) against the elbow axis
-        # Elbow up is φ3 < 0 when reaching forward and φ3 > 0 when reaching back.
-        sin3 = np.sqrt(1.0 - cos3 * cos3) * _ELBOW_SIGN  # (…, 2, 2)
-        phi3 = np.arctan2(sin3, cos3)
-        # Upper arm direction: the wrist direction (reach, height) turned back by the angle
-        # the forearm adds at the shoulder, atan2(l3 sin φ3, l2 + l3 cos φ3).
-        along, across = self.l2 + self.l3 * cos3, self.l3 * sin3
-        reach, height = reach[..., None], height[..., None]
-        upper_x = reach * along + height * across
-        upper_y = height * along - reach * across
-        phi2 = np.arctan2(upper_y, upper_x)
-        norm = np.sqrt(upper_x * upper_x + upper_y * upper_y)
-        folded = norm == 0.0  # wrist centre on the shoulder (l2 = l3): φ2 is free, atan2 gives 0
-        norm = np.where(folded, 1.0, norm)
-        cos2, sin2 = np.where(folded, 1.0, upper_x / norm), upper_y / norm
-        cos23, sin23 = cos2 * cos3 - sin2 * sin3, sin2 * cos3 + cos2 * sin3
-
-        # R_w = Rx(−φ23)·Rz(−φ1)·R, entry by entry; reaching back (φ1 + π) negates rows 0, 1
-        # of Rz(−φ1)·R. Only the seven entries the wrist solver reads are formed.
-        n = pose[..., :3, :3]
-        side = _SHOULDER_SIGN[:, None]  # (2 shoulders, 1) against (…, 2, 2)
-        turned0 = [(cos1 * n[..., 0, j] + sin1 * n[..., 1, j])[..., None, None] * side
-                   for j in range(3)]
-        turned1 = [(cos1 * n[..., 1, j] - sin1 * n[..., 0, j])[..., None, None] * side
-                   for j in (0, 1, 2)]
-        turned2 = [n[..., 2, j][..., None, None] for j in range(3)]
-        wrist = wrist_branches(
-            np.broadcast_to(turned0[0], cos23.shape),
-            np.broadcast_to(turned0[1], cos23.shape),
-            np.broadcast_to(turned0[2], cos23.shape),
-            cos23 * turned1[1] + sin23 * turned2[1],
-            cos23 * turned2[0] - sin23 * turned1[0],
-            cos23 * turned2[1] - sin23 * turned1[1],
-            cos23 * turned2[2] - sin23 * turned1[2],
-        )  # columns a, b, c, each (…, shoulder, elbow, wrist)
-        batch = phi3.shape[:-2]
-        phi1 = np.broadcast_to((phi1_front[..., None] + _SHOULDER_TURN)[..., None], phi3.shape)
-        return with_positioning(
-            [column.reshape((*batch, 4)) for column in (phi1, phi2, phi3)],
-            [column.reshape((*batch, 4, 2)) for column in wrist],
-        )
-
-
     def _kernel_parameters(self) -> np.ndarray:
         return np.array([self.l1, self.l2, self.l3])
 
@@ -157,9 +98,10 @@ _SHOULDER_TURN = np.array([0.0, np.pi])
 _ELBOW_SIGN = np.array([[-1.0, 1.0], [1.0, -1.0]])
 
 
-def _anthropomorphic_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
-    """``AnthropomorphicArm._ik_candidates`` for one pose, formula for formula, on floats
-    (the compiled single-pose path, ``envs/kinematics/compiled.py``)."""
+def anthropomorphic_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
+    """The arm's closed form for one pose (``Arm._kernel``): the 8 rows front/back ×
+    elbow up/down × wrist +/−. cos/sin of φ1, φ3 and φ2 + φ3 come from the geometry
+    (normalised vectors), not from cos/sin of the angles."""
     l1, l2, l3 = p[0], p[1], p[2]
     x, y, z = m[0, 3], m[1, 3], m[2, 3]
     horizontal = math.sqrt(x * x + y * y)
@@ -210,4 +152,4 @@ def _anthropomorphic_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> No
             row += 2
 
 
-AnthropomorphicArm._kernel = staticmethod(_anthropomorphic_kernel)
+AnthropomorphicArm._kernel = staticmethod(anthropomorphic_kernel)

@@ -1,10 +1,10 @@
 """The common contract of every arm: parameters as frozen data, FK, all-branch IK.
 
-Subclasses supply the closed-form maths (``_fk``, ``_ik_candidates`` and its scalar twin
-``_kernel``); this base class owns input validation, the reduction of revolute values to
-their representatives inside the joint limits (turn branches included), joint-limit
-checks and the NaN convention, so every arm answers bad input and unreachable poses the
-same way.
+Subclasses supply the closed-form maths (``_fk`` on batches of configurations, and ``_kernel``,
+the closed-form IK of one pose, written once); this base class and the one IK driver
+(``compiled.py``) own input validation, the reduction of revolute values to their
+representatives inside the joint limits (turn branches included), joint-limit checks and
+the NaN convention, so every arm answers bad input and unreachable poses the same way.
 
 Revolute joints, by their limits (``docs/kinematics_opw_ur.md``, "Turn branches"):
 
@@ -34,17 +34,13 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .rotations import ORTHONORMAL_TOL, as_float_array, validate_rotation, wrap_angle
+from .rotations import as_float_array
 
 #: A branch counts as inside its joint limits up to this slack (rad or m), so a solution
 #: that lands on a limit within rounding is not thrown away. Values are never clamped.
 LIMIT_TOL = 1e-9
 
 REVOLUTE, PRISMATIC = "revolute", "prismatic"
-
-#: Poses solved per pass inside ``ik`` for arms with up to 8 branches (a batch is split so
-#: temporaries stay in cache); arms with more branches use proportionally smaller chunks.
-IK_CHUNK = 2048
 
 #: The most branches (closed-form × turn windows) an arm may enumerate: limits so wide
 #: that they exceed it are a data-entry error, not a robot (UR5e: 256, IRB 2600: 72).
@@ -56,14 +52,12 @@ _WITHIN_PI_TOL = 1e-12
 #: Slack on the number of turn windows: a span of 4π (UR's ±360°) needs 2 windows, not 3.
 _WINDOW_COUNT_TOL = 1e-9
 
-# How ``_checked_candidates`` (and the compiled single-pose path) treat each joint.
+# How the IK driver (``compiled.finish_rows``) treats each joint.
 LINEAR, WRAPPED_FULL, WRAPPED, TURNS = 0, 1, 2, 3
 
 #: A scalar kernel ``kernel(m, params, out)`` (``Arm._kernel``): writes the closed-form rows
 #: of the (4, 4) pose ``m`` into ``out`` (Kc, dof).
 Kernel = Callable[[np.ndarray, np.ndarray, np.ndarray], None]
-#: ``pose (4, 4) -> (Q (K, dof), ok (K,))``, the compiled single-pose path of one arm.
-SinglePoseSolver = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
 
 
 def array_default(values: ArrayLike) -> Callable[[], np.ndarray]:
@@ -94,11 +88,14 @@ class Arm(ABC):
     #: True for two-arm systems: ``fk`` is one arm's output link relative to the other's,
     #: not a tool in the world, so world-frame tasks and cells are not for them.
     relative: ClassVar[bool] = False
-    #: The scalar twin of ``_ik_candidates`` used by the compiled single-pose path (see
-    #: ``envs/kinematics/compiled.py``): ``kernel(m, params, out)`` writes the closed-form
-    #: rows of the (4, 4) float array ``m`` into ``out`` (Kc, dof), which arrives NaN;
-    #: ``params`` is ``_kernel_parameters()``. Plain Python on floats and ``math``.
-    _kernel: ClassVar[Kernel | None] = None
+    #: The arm's closed-form IK, its one statement (``envs/kinematics/compiled.py``):
+    #: ``kernel(m, params, out)`` writes the closed-form rows of the (4, 4) float array ``m``
+    #: into ``out`` (Kc, dof), which arrives NaN, in branch order and NaN where a branch does
+    #: not exist; revolute values may be any 2π shift (the driver picks the
+    #: representatives). ``params`` is ``_kernel_parameters()``. Plain Python on floats and
+    #: ``math``, so numba compiles it and CPython runs it alike; listed in
+    #: ``compiled.KERNELS``.
+    _kernel: ClassVar[Kernel]
 
     #: Given as any (dof, 2) array-like; stored as a read-only float64 array.
     joint_limits: np.ndarray
@@ -220,53 +217,34 @@ class Arm(ABC):
         a branch is valid when it exists and lies inside ``joint_limits``; invalid rows are
         NaN. An unreachable pose is not an error: all its rows are invalid.
 
-        One (4, 4) ndarray goes through the compiled single-pose path when numba is
-        available (the same answer to 1e-12, ``envs/kinematics/compiled.py``).
+        One pose or a million go through the same compiled driver and the arm's one
+        closed form (``envs/kinematics/compiled.py``), pose by pose: a pose's branches do not
+        depend on the batch it came in.
         """
-        if type(pose) is np.ndarray and pose.shape == (4, 4) and pose.dtype.kind in "fiu":
-            single = self._single_pose_solver
-            if single is not None:
-                return single(pose)
-        return self.ik_batched(pose)
+        q, ok, _ = self._solve(pose)
+        return q, ok
 
-    def ik_batched(self, pose: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
-        """``ik`` through the pure-numpy solver for any batch shape (the reference)."""
-        pose = as_float_array(pose, "pose")
+    def _solve(self, pose: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(Q (…, K, dof), ok (…, K), reach (…,)) for ``pose`` (…, 4, 4)."""
+        if (type(pose) is np.ndarray and pose.shape == (4, 4) and pose.dtype == np.float64
+                and pose.flags.c_contiguous):
+            # One pose, the common case of a controller loop: no copy, no conversion.
+            q, ok, reach = self._solver(pose.reshape(1, 4, 4))
+            return q[0], ok[0], reach[0]
+        # The driver checks every pose (finite, rigid) and names the first bad one.
+        pose = as_float_array(pose, "pose", check_finite=False)
         if pose.ndim < 2 or pose.shape[-2:] != (4, 4):
             raise ValueError(f"pose must have shape (..., 4, 4), got {pose.shape}")
         batch_shape = pose.shape[:-2]
-        flat = pose.reshape(-1, 4, 4)
-        if np.any(np.abs(flat[:, 3, :] - (0.0, 0.0, 0.0, 1.0)) > ORTHONORMAL_TOL):
-            raise ValueError("pose bottom row must be (0, 0, 0, 1)")
-        candidates = np.empty((flat.shape[0], self.n_branches, self.dof))
-        ok = np.empty((flat.shape[0], self.n_branches), dtype=bool)
-        # Chunks keep the temporaries in cache: on 100k poses this is ~3x faster than one pass.
-        chunk_size = max(64, IK_CHUNK * 8 // max(8, self.n_branches))
-        for start in range(0, flat.shape[0], chunk_size):
-            chunk = flat[start : start + chunk_size]
-            if self.target == "pose":
-                validate_rotation(chunk[..., :3, :3], "pose")
-            window = slice(start, start + chunk_size)
-            result = self._checked_candidates(chunk, out=(candidates[window], ok[window]))
-            if result is not None:
-                candidates[window], ok[window] = result
+        q, ok, reach = self._solver(np.ascontiguousarray(pose.reshape(-1, 4, 4)))
         shape = (*batch_shape, self.n_branches)
-        return candidates.reshape((*shape, self.dof)), ok.reshape(shape)
+        return q.reshape((*shape, self.dof)), ok.reshape(shape), reach.reshape(batch_shape)
 
     def reaches(self, pose: ArrayLike) -> np.ndarray:
         """(…,) bool: some closed-form branch exists for ``pose`` (…, 4, 4), the joint
         limits aside: where ``ik`` finds no valid branch, this tells "out of reach" (False)
         from "outside the joint limits" (True)."""
-        pose = as_float_array(pose, "pose")
-        if pose.ndim < 2 or pose.shape[-2:] != (4, 4):
-            raise ValueError(f"pose must have shape (..., 4, 4), got {pose.shape}")
-        flat = pose.reshape(-1, 4, 4)
-        with np.errstate(invalid="ignore"):
-            raw = self._ik_candidates(flat)
-        columns = raw if not isinstance(raw, np.ndarray) else [raw[..., j]
-                                                              for j in range(self.dof)]
-        exists = np.all([np.isfinite(np.asarray(c)) for c in columns], axis=0).any(axis=-1)
-        return exists.reshape(pose.shape[:-2])
+        return self._solve(pose)[2]
 
     def within_limits(self, q: ArrayLike) -> np.ndarray:
         """(…,) bool: every joint of ``q`` (…, dof) inside its limits (with ``LIMIT_TOL``)."""
@@ -295,99 +273,17 @@ class Arm(ABC):
     def _n_turn_combinations(self) -> int:
         return math.prod(slots for _, _, _, slots in self._joint_modes)
 
-    def _checked_candidates(
-        self, pose: np.ndarray, out: tuple[np.ndarray, np.ndarray] | None = None
-    ) -> tuple[np.ndarray, np.ndarray] | None:
-        """(candidates (…, K, dof), ok (…, K)) for a chunk; with turn windows and ``out``
-        (two arrays of those shapes) they are written there and None is returned."""
-        with np.errstate(invalid="ignore"):
-            raw = self._ik_candidates(pose)
-            if isinstance(raw, np.ndarray):
-                raw = [raw[..., joint] for joint in range(self.dof)]
-            # Joint by joint on (…, Kc) columns: wrapping and limit checks on the stacked
-            # (…, K, dof) array would pass over a short strided axis, slowly.
-            columns: list[np.ndarray] = []
-            ok: np.ndarray | None = None
-            turned: list[np.ndarray] = []
-            for values, (mode, lower, upper, slots) in zip(raw, self._joint_modes, strict=True):
-                if mode == TURNS:
-                    values = turn_representatives(values, lower, slots)
-                elif mode != LINEAR:
-                    values = wrap_angle(values)
-                if mode == WRAPPED_FULL:
-                    inside = values == values  # a wrapped angle fits; NaN does not
-                else:
-                    inside = (values >= lower - LIMIT_TOL) & (values <= upper + LIMIT_TOL)
-                columns.append(values)
-                if slots > 1:
-                    turned.append(inside)  # (…, Kc, windows)
-                else:
-                    ok = inside if ok is None else ok & inside
-        if not turned:
-            # Every joint has one window here, so each of the (dof ≥ 1) joints set ``ok``.
-            assert ok is not None
-            candidates = np.stack(columns, axis=-1)
-            candidates[~ok] = np.nan
-            return candidates, ok
-        return self._expand_turns(columns, ok, turned, out)
-
-    def _expand_turns(
-        self,
-        columns: list[np.ndarray],
-        ok: np.ndarray | None,
-        turned: list[np.ndarray],
-        out: tuple[np.ndarray, np.ndarray] | None = None,
-    ) -> tuple[np.ndarray, np.ndarray] | None:
-        """Every branch from (…, Kc) columns and the (…, Kc, windows) columns of turned
-        joints: branch k takes closed-form row k // T and, for each turned joint, the
-        window its index names (first turned joint slowest), by one gather per joint."""
-        if ok is None:
-            ok = np.ones(turned[0].shape[:-1], dtype=bool)
-        lead = np.broadcast_shapes(ok.shape, *(inside.shape[:-1] for inside in turned))
-        batch = lead[:-1]
-        given = out is not None
-        if out is None:
-            out = (np.empty((*batch, self.n_branches, self.dof)),
-                   np.empty((*batch, self.n_branches), dtype=bool))
-        candidates, valid = out
-        closed, windows = self._turn_gather
-        np.take(np.broadcast_to(ok, lead), closed, axis=-1, out=valid)
-        for index, inside in enumerate(turned):
-            inside = np.broadcast_to(inside, (*lead, inside.shape[-1])).reshape((*batch, -1))
-            valid &= np.take(inside, windows[index], axis=-1)
-        invalid = ~valid
-        index = 0
-        for joint, values in enumerate(columns):
-            if self._joint_modes[joint][3] > 1:
-                values = np.broadcast_to(values, (*lead, values.shape[-1])).reshape((*batch, -1))
-                column = np.take(values, windows[index], axis=-1)
-                index += 1
-            else:
-                column = np.take(np.broadcast_to(values, lead), closed, axis=-1)
-            column[invalid] = np.nan
-            candidates[..., joint] = column
-        return None if given else (candidates, valid)
-
+    # ------------------------------------------------------------------------ compiled IK
     @cached_property
-    def _turn_gather(self) -> tuple[np.ndarray, list[np.ndarray]]:
-        """For every branch: its closed-form row, and per turned joint the index of its
-        window's value in that joint's (Kc·windows) flattened columns."""
-        turns = self.branch_turns
-        counts = [len(windows) for _, windows in self.turn_windows]
-        closed = self.branch_closed_form
-        return closed, [closed * count + turns[:, j] for j, count in enumerate(counts)]
+    def _solver(self) -> Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        from .compiled import solver  # lazily: it brings numba in (module docstring)
 
-    # ------------------------------------------------------------- compiled single pose
-    @cached_property
-    def _single_pose_solver(self) -> SinglePoseSolver | None:
-        from .compiled import single_pose_solver
-
-        return single_pose_solver(self)
+        return solver(self)
 
     def __getstate__(self) -> dict[str, Any]:
-        # The compiled solver is a closure (not picklable) and cheap to rebuild.
+        # The solver is a closure (not picklable) and cheap to rebuild.
         state = self.__dict__.copy()
-        state.pop("_single_pose_solver", None)
+        state.pop("_solver", None)
         return state
 
     def _kernel_parameters(self) -> np.ndarray:
@@ -398,22 +294,6 @@ class Arm(ABC):
     @abstractmethod
     def _fk(self, q: np.ndarray) -> np.ndarray: ...
 
-    @abstractmethod
-    def _ik_candidates(self, pose: np.ndarray) -> np.ndarray | list[np.ndarray]:
-        """Raw candidates in branch order, NaN where a branch does not exist: a (…, Kc, dof)
-        array, or the dof joint columns, each (…, Kc) (faster for big batches). Revolute
-        values may be any 2π shift; the base class picks the representatives."""
-
-
-def turn_representatives(values: np.ndarray, lower: float, slots: int) -> np.ndarray:
-    """The value of each turn window for raw revolute ``values`` (…): window 0 holds the
-    shift in [lower − LIMIT_TOL, lower − LIMIT_TOL + 2π), window t that plus 2πt.
-    Returns (…) for one window, (…, slots) otherwise; NaN stays NaN."""
-    base = lower - LIMIT_TOL
-    first = values - TWO_PI * np.floor((values - base) / TWO_PI)
-    if slots == 1:
-        return first
-    return first[..., None] + TWO_PI * np.arange(slots)
 
 
 def _degrees(angle: float) -> str:

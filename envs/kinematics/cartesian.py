@@ -17,7 +17,7 @@ import numpy as np
 
 from .arm import PRISMATIC, REVOLUTE, Arm, array_default
 from .rotations import homogeneous
-from .wrist import put_wrist_rows, solve_with_wrist, wrist_rotation
+from .wrist import put_wrist_rows, wrist_rotation
 
 _DEG = np.pi / 180.0
 
@@ -46,14 +46,10 @@ class CartesianArm(Arm):
     def _fk(self, q: np.ndarray) -> np.ndarray:
         return homogeneous(wrist_rotation(q[..., 3], q[..., 4], q[..., 5]), q[..., :3])
 
-    def _ik_candidates(self, pose: np.ndarray) -> list[np.ndarray]:
-        return solve_with_wrist(pose[..., None, :3, 3], pose[..., None, :3, :3])
-
-
-def _cartesian_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
-    """``CartesianArm._ik_candidates`` for one pose (``envs/kinematics/compiled.py``)."""
+def cartesian_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
+    """The arm's closed form for one pose (``Arm._kernel``)."""
     put_wrist_rows(out, 0, m[0, 3], m[1, 3], m[2, 3],
                    m[0, 0], m[0, 1], m[0, 2], m[1, 1], m[2, 0], m[2, 1], m[2, 2])
 
 
-CartesianArm._kernel = staticmethod(_cartesian_kernel)
+CartesianArm._kernel = staticmethod(cartesian_kernel)

@@ -1,49 +1,76 @@
-"""The single-pose path: every arm's scalar kernel, compiled with numba, behind one driver.
+"""Every arm's inverse kinematics, batched or one pose: one driver around per-arm scalar
+kernels, compiled with numba.
 
-Why: on one pose the batched numpy solvers pay numpy's per-call overhead (~1 µs a ufunc,
-85–240 µs a pose) for a few hundred flops. One mechanism serves every arm:
+Each arm's closed form is written **once**, as a scalar kernel (``Arm._kernel``): plain
+Python on floats and ``math`` that writes the closed-form rows of one (4, 4) pose into a
+NaN-filled (Kc, dof) array. One driver, ``solve_poses``, serves every arm and every batch
+size: per pose the shared input checks (``pose_status``), the arm's kernel (picked from
+``KERNELS`` by number) and the shared reduction to joint limits and turn windows
+(``finish_rows``). ``Arm.ik`` calls it for one pose and for a million alike, so a pose's
+branches never depend on the batch it came in.
 
-* each arm class names a **scalar kernel** (``Arm._kernel``): plain Python on floats and
-  ``math``, the same formulas as its numpy ``_ik_candidates``, writing the closed-form rows
-  of one pose into a NaN-filled (Kc, dof) array;
-* one **driver** per kernel, compiled here, runs the shared input checks
-  (``pose_status``), the kernel, and the shared reduction to joint limits and turn windows
-  (``finish_rows``, the scalar statement of ``Arm._checked_candidates``);
-* tests hold every arm's compiled path to its numpy path (``ik_batched``) on random,
-  singular, boundary and unreachable poses.
+numba compiles the driver with every kernel once per machine (about 7 s) into an on-disk
+cache under a directory named by a hash of this package's sources (numba alone would not
+notice an edited kernel: it stamps the cache with the driver's file only); a process then
+loads it in ~0.3 s on its first IK call. Without numba the very same functions run
+interpreted: the same answers (tested bit for bit against the compiled ones), ~1,000×
+slower. This package imports numba only here, lazily, so it stays importable with numpy
+alone.
 
-The numpy solvers stay the reference: every batch goes through them, and so do single
-poses when numba is missing (``single_pose_solver`` returns None). The kernels do the
-numpy solvers' arithmetic in the same order, so with numpy's own SIMD transcendentals off
-the two agree bit for bit on every arm whose numpy solver does not multiply rotations with
-matmul/einsum (tested in a subprocess). In numpy's default build they agree to 1e-12:
-its AVX-512 float64 ``arctan2`` and ``arccos`` loops differ from the C library's
-``atan2``/``acos`` (used by numba and by ``math``) by one ulp on a few percent of inputs
-(measured: 2.8 % of atan2, 9.4 % of acos calls over 10⁶ random inputs).
-
-Why numba and not a pure-Python scalar path: numba is the project's compiled-kernel tool
-and ships wheels for every platform numpy does. The pure-Python twin of the
-anthropomorphic solver took 14–22 µs for 8 branches; with turn branches (UR5e: 256) the
-reduction alone costs ~100 µs in Python. Compiling the numpy solvers themselves with numba
-was measured too: bitwise equal and 6.8 µs, but 74 s of compilation for one arm, and five
-arms use batched matmul/einsum numba does not support. The scalar kernels compile in about
-a second each, on the first single-pose call of each arm class in a process (nothing is
-written to disk).
+Why scalar kernels and not the batched numpy solvers of earlier versions: on one pose numpy
+pays ~1 µs per ufunc call (85–240 µs a pose, against 2–10 µs compiled), the kernels are
+as fast on batches (docs/kinematics_opw_ur.md), and two copies of every closed form —
+numpy and scalar — only agreed to an ulp (numpy's AVX-512 arctan2/arccos differ from the C
+library's on a few percent of inputs). Compiling the numpy solvers with numba was measured
+too: 74 s of compilation for one arm, and matmul/einsum on batches numba does not support.
 """
 
 from __future__ import annotations
 
 import functools
+import hashlib
 import math
+import os
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .arm import LIMIT_TOL, LINEAR, TURNS, TWO_PI, WRAPPED_FULL, Arm, Kernel, SinglePoseSolver
+from .anthropomorphic import anthropomorphic_kernel
+from .arm import LIMIT_TOL, LINEAR, TURNS, TWO_PI, WRAPPED_FULL, Arm, Kernel
+from .cartesian import cartesian_kernel
+from .cylindrical import cylindrical_kernel
+from .cylindrical4 import cylindrical4_kernel
+from .dual import ppr_prr_kernel, rrp_rpp_kernel, rrr_ppp_kernel, zxz_branches
+from .opw import opw_kernel
+from .rod import rod_kernel
 from .rotations import ORTHONORMAL_TOL
+from .spherical import spherical_kernel
+from .ur import singular_wrist_turn, ur_kernel
+from .wrist import put_wrist_rows, wrist_branches
 
-#: ``pose_status`` codes -> the messages the numpy path raises for the same input.
+#: Every arm's kernel; an arm's kernel number is its index here (``closed_form_rows``).
+KERNELS: tuple[Kernel, ...] = (
+    anthropomorphic_kernel,
+    cartesian_kernel,
+    cylindrical_kernel,
+    cylindrical4_kernel,
+    rrp_rpp_kernel,
+    rrr_ppp_kernel,
+    ppr_prr_kernel,
+    opw_kernel,
+    rod_kernel,
+    spherical_kernel,
+    ur_kernel,
+)
+
+#: Scalar functions the kernels call (compiled along with them).
+KERNEL_HELPERS: tuple[Callable, ...] = (
+    wrist_branches, put_wrist_rows, zxz_branches, singular_wrist_turn,
+)
+
+#: ``pose_status`` codes -> the messages ``Arm.ik`` raises.
 STATUS_MESSAGES = {
     1: "pose contains NaN or inf",
     2: "pose bottom row must be (0, 0, 0, 1)",
@@ -51,12 +78,14 @@ STATUS_MESSAGES = {
     4: "pose rotation block is a reflection (det < 0), not a rotation",
 }
 
+#: ``poses (N, 4, 4) -> (Q (N, K, dof), ok (N, K), reach (N,))`` for one arm.
+Solver = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
+
 
 def pose_status(m: np.ndarray, check_rotation: bool) -> int:
-    """0 if the (4, 4) array ``m`` is a valid target, else a ``STATUS_MESSAGES`` code.
-
-    The checks of ``as_float_array``, ``Arm.ik_batched`` and ``validate_rotation``, in that
-    order and with the same arithmetic (dot products summed left to right)."""
+    """0 if the (4, 4) array ``m`` is a valid target, else a ``STATUS_MESSAGES`` code: finite,
+    bottom row (0, 0, 0, 1) and, for ``check_rotation``, a rotation block orthonormal to
+    ``ORTHONORMAL_TOL`` (the tolerance of ``rotations.validate_rotation``) and proper."""
     for i in range(4):
         for j in range(4):
             if not math.isfinite(m[i, j]):
@@ -84,7 +113,7 @@ def pose_status(m: np.ndarray, check_rotation: bool) -> int:
     return 0
 
 
-def finish_rows(
+def finish_rows(  # noqa: C901 (one loop nest on purpose: see the docstring)
     raw: np.ndarray,
     modes: np.ndarray,
     lower: np.ndarray,
@@ -92,29 +121,55 @@ def finish_rows(
     slots: np.ndarray,
     q: np.ndarray,
     ok: np.ndarray,
-) -> None:
-    """``Arm._checked_candidates`` for one pose: raw closed-form rows (Kc, dof) -> every
-    branch's row ``q`` (K, dof) and ``ok`` (K,), K = Kc × Π slots (last joint fastest).
+    pose: int,
+    values: np.ndarray,
+    inside: np.ndarray,
+) -> bool:
+    """Raw closed-form rows (Kc, dof) of pose number ``pose`` -> every branch's row
+    ``q[pose]`` (K, dof) and ``ok[pose]`` (K,), K = Kc × Π slots (last joint fastest):
+    revolute values moved to their representatives (``arm.py``'s module docstring),
+    checked against the limits, invalid rows NaN. Returns whether some closed-form row
+    exists (the limits aside). ``values`` and ``inside`` are scratch tables
+    (dof, ``_slot_width(slots)``).
 
-    The same floating-point operations as the numpy path, so values agree bitwise given
-    the same raw rows. The helpers called in the loops take and return scalars only: with
-    the per-joint and per-branch steps as helpers taking the arrays (numba reference-counts
-    an inlined helper's array arguments), UR5e's 256 branches measured ~20 % slower."""
+    Written for speed inside the driver's loop over poses: no allocation and no array view
+    per pose, a closed-form row that does not exist skipped whole, arms without turn
+    windows spared the window arithmetic, and one loop nest whose helpers take and return
+    scalars only: numba reference-counts a helper's array arguments, and splitting the
+    per-row steps into array-taking helpers measured 10–25 % slower (inlined or not)."""
     kc, dof = raw.shape
-    turns = q.shape[0] // kc
-    width = _slot_width(slots)
-    values = np.empty((dof, width))
-    inside = np.zeros((dof, width), dtype=np.bool_)
+    turns = q.shape[1] // kc
+    reach = False
     for closed in range(kc):
+        exists = True
+        for joint in range(dof):
+            if raw[closed, joint] != raw[closed, joint]:
+                exists = False
+        if not exists:  # every branch of this closed-form row is invalid
+            for row in range(closed * turns, (closed + 1) * turns):
+                ok[pose, row] = False
+                for joint in range(dof):
+                    q[pose, row, joint] = math.nan
+            continue
+        reach = True
+        if turns == 1:  # no turn windows: branch ``closed`` is the row itself
+            valid = True
+            for joint in range(dof):
+                mode, low = modes[joint], lower[joint]
+                v = _wrap_joint_value(raw[closed, joint], mode, low)
+                q[pose, closed, joint] = v
+                if not _within_limits(v, mode, low, upper[joint]):
+                    valid = False
+            ok[pose, closed] = valid
+            if not valid:
+                for joint in range(dof):
+                    q[pose, closed, joint] = math.nan
+            continue
+        # Each joint's window values and limit checks once, then one branch per
+        # combination of windows (first turned joint slowest).
         for joint in range(dof):
             mode, low, high, count = modes[joint], lower[joint], upper[joint], slots[joint]
-            v = raw[closed, joint]
-            if v != v:  # the branch does not exist
-                for slot in range(count):
-                    values[joint, slot] = math.nan
-                    inside[joint, slot] = False
-                continue
-            v = _wrap_joint_value(v, mode, low)
+            v = _wrap_joint_value(raw[closed, joint], mode, low)
             for slot in range(count):
                 w = v + TWO_PI * slot if count > 1 else v
                 values[joint, slot] = w
@@ -124,15 +179,18 @@ def finish_rows(
             rest, valid = turn, True
             for joint in range(dof - 1, -1, -1):
                 count = slots[joint]
-                slot = rest % count
-                rest //= count
-                q[row, joint] = values[joint, slot]
+                slot = 0
+                if count > 1:
+                    slot = rest % count
+                    rest //= count
+                q[pose, row, joint] = values[joint, slot]
                 if not inside[joint, slot]:
                     valid = False
-            ok[row] = valid
+            ok[pose, row] = valid
             if not valid:
                 for joint in range(dof):
-                    q[row, joint] = math.nan
+                    q[pose, row, joint] = math.nan
+    return reach
 
 
 def _slot_width(slots: np.ndarray) -> int:
@@ -162,17 +220,84 @@ def _within_limits(w: float, mode: int, low: float, high: float) -> bool:
     return w >= low - LIMIT_TOL and w <= high + LIMIT_TOL
 
 
-#: The helpers of ``finish_rows``, registered with numba to be inlined into it.
+#: The scalar helpers of ``finish_rows``, registered with numba (LLVM inlines them; numba's
+#: own ``inline="always"`` was no faster and raised pedantic IR warnings when compiling).
 _FINISH_HELPERS = (_slot_width, _wrap_joint_value, _within_limits)
 
 
-def kernel_helpers() -> tuple[Callable, ...]:
-    """Module-level scalar functions the kernels call (compiled along with them)."""
-    from .dual import zxz_scalar
-    from .ur import singular_wrist_turn
-    from .wrist import put_wrist_rows, wrist_branches_scalar
+def closed_form_rows(kernel: int, m: np.ndarray, params: np.ndarray, out: np.ndarray) -> None:
+    """Run ``KERNELS[kernel]`` (a chain of calls: numba cannot index a tuple of functions)."""
+    if kernel == 0:
+        anthropomorphic_kernel(m, params, out)
+    elif kernel == 1:
+        cartesian_kernel(m, params, out)
+    elif kernel == 2:
+        cylindrical_kernel(m, params, out)
+    elif kernel == 3:
+        cylindrical4_kernel(m, params, out)
+    elif kernel == 4:
+        rrp_rpp_kernel(m, params, out)
+    elif kernel == 5:
+        rrr_ppp_kernel(m, params, out)
+    elif kernel == 6:
+        ppr_prr_kernel(m, params, out)
+    elif kernel == 7:
+        opw_kernel(m, params, out)
+    elif kernel == 8:
+        rod_kernel(m, params, out)
+    elif kernel == 9:
+        spherical_kernel(m, params, out)
+    else:
+        ur_kernel(m, params, out)
 
-    return (wrist_branches_scalar, put_wrist_rows, zxz_scalar, singular_wrist_turn)
+
+def solve_poses(
+    kernel: int,
+    poses: np.ndarray,
+    params: np.ndarray,
+    kc: int,
+    dof: int,
+    k: int,
+    check_rotation: bool,
+    modes: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    slots: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int]:
+    """Every branch of every pose of ``poses`` (N, 4, 4) for kernel number ``kernel``.
+
+    Returns ``(Q (N, K, dof), ok (N, K), reach (N,), bad, status)``: ``reach`` is whether
+    some closed-form row exists before the joint limits; ``bad`` is the first invalid
+    pose (−1 if none) and ``status`` its ``STATUS_MESSAGES`` code, checked for every pose
+    before any is solved."""
+    n = poses.shape[0]
+    q = np.empty((n, k, dof))
+    ok = np.zeros((n, k), dtype=np.bool_)
+    reach = np.zeros(n, dtype=np.bool_)
+    for i in range(n):
+        status = pose_status(poses[i], check_rotation)
+        if status != 0:
+            return q, ok, reach, i, status
+    raw = np.empty((kc, dof))
+    width = _slot_width(slots)
+    values = np.empty((dof, width))
+    inside = np.zeros((dof, width), dtype=np.bool_)
+    for i in range(n):
+        raw[:] = math.nan
+        closed_form_rows(kernel, poses[i], params, raw)
+        reach[i] = finish_rows(raw, modes, lower, upper, slots, q, ok, i, values, inside)
+    return q, ok, reach, -1, 0
+
+
+def kernel_number(cls: type[Arm]) -> int:
+    """The index of ``cls._kernel`` in ``KERNELS``."""
+    for number, kernel in enumerate(KERNELS):
+        if cls._kernel is kernel:
+            return number
+    raise TypeError(
+        f"{cls.__name__}._kernel is not one of envs.kinematics.compiled.KERNELS: a new "
+        "closed form is added to KERNELS and to closed_form_rows"
+    )
 
 
 @functools.cache
@@ -181,67 +306,70 @@ def _numba() -> Any:
     # this package may import only numpy and the typing modules (test_purity.py).
     try:
         import numba
-    except ImportError:  # the numpy path answers every pose, only slower
+    except ImportError:  # the same functions run interpreted
         return None
-    from numba.extending import register_jitable
-
-    for helper in kernel_helpers():
-        register_jitable(helper)
-    for helper in _FINISH_HELPERS:
-        # A fresh decorator per helper: register_jitable pops ``inline`` from its options.
-        register_jitable(inline="always")(helper)
     return numba
 
 
-@functools.cache
-def _shared() -> tuple[Callable, Callable]:
-    numba = _numba()
-    return numba.njit(pose_status), numba.njit(finish_rows)
+def source_digest(package: Path) -> str:
+    """A hash of every ``.py`` file in ``package`` (names and contents), 16 hex digits."""
+    digest = hashlib.sha256()
+    for source in sorted(package.glob("*.py")):
+        digest.update(source.name.encode())
+        digest.update(source.read_bytes())
+    return digest.hexdigest()[:16]
+
+
+def cache_directory() -> Path | None:
+    """Where the compiled driver is cached: a directory named by the hash of this package's
+    sources, under ``NUMBA_CACHE_DIR`` if set, else under this package's ``__pycache__``
+    (else the user's cache directory); None if none is writable (compiled per process)."""
+    here = Path(__file__).resolve().parent
+    name = f"numba-{source_digest(here)}"
+    roots = [Path(os.environ["NUMBA_CACHE_DIR"])] if os.environ.get("NUMBA_CACHE_DIR") else []
+    roots += [here / "__pycache__", Path.home() / ".cache" / "ikbranch"]
+    for root in roots:
+        directory = root / name
+        try:
+            directory.mkdir(parents=True, exist_ok=True)
+        except OSError:
+            continue
+        if os.access(directory, os.W_OK):
+            return directory
+    return None
 
 
 @functools.cache
-def _driver(kernel: Kernel) -> Callable | None:
-    """The compiled single-pose solver around ``kernel`` (one per kernel function)."""
+def compiled_solve_poses() -> Callable:
+    """``solve_poses`` compiled (loaded from the on-disk cache after the first time), or the
+    interpreted function itself without numba."""
     numba = _numba()
     if numba is None:
-        return None
-    status_of, finish = _shared()
-    solve_rows = numba.njit(kernel)
+        return solve_poses
+    import numba.extending
 
-    @numba.njit
-    def drive(
-        m: np.ndarray,
-        params: np.ndarray,
-        kc: int,
-        dof: int,
-        k: int,
-        check_rotation: bool,
-        modes: np.ndarray,
-        lower: np.ndarray,
-        upper: np.ndarray,
-        slots: np.ndarray,
-    ) -> tuple[np.ndarray, np.ndarray, int]:
-        q = np.empty((k, dof))
-        ok = np.zeros(k, dtype=np.bool_)
-        status = status_of(m, check_rotation)
-        if status != 0:
-            return q, ok, status
-        raw = np.full((kc, dof), np.nan)
-        solve_rows(m, params, raw)
-        finish(raw, modes, lower, upper, slots, q, ok)
-        return q, ok, 0
-
-    return drive
+    for function in (*KERNELS, *KERNEL_HELPERS, pose_status, finish_rows, closed_form_rows):
+        numba.extending.register_jitable(function)
+    for helper in _FINISH_HELPERS:
+        numba.extending.register_jitable(helper)
+    directory = cache_directory()
+    if directory is None:
+        return numba.njit(solve_poses)
+    # numba picks the cache location when the function is decorated, from this setting
+    # (NUMBA_CACHE_DIR's); restored at once so other kernels keep their own caches.
+    saved = numba.config.CACHE_DIR
+    numba.config.CACHE_DIR = str(directory)
+    try:
+        return numba.njit(cache=True)(solve_poses)
+    finally:
+        numba.config.CACHE_DIR = saved
 
 
-def single_pose_solver(arm: Arm) -> SinglePoseSolver | None:
-    """``pose (4, 4) -> (Q (K, dof), ok (K,))`` for ``arm``, or None without numba."""
-    kernel = type(arm)._kernel
-    if kernel is None:
-        return None
-    drive = _driver(kernel)
-    if drive is None:
-        return None
+def solver(arm: Arm) -> Solver:
+    """``poses (N, 4, 4) float64 C-contiguous -> (Q, ok, reach)`` for ``arm``; raises
+    ``ValueError`` (naming the pose for N > 1) for a non-finite or non-rigid pose."""
+    kernel = kernel_number(type(arm))
+    solve = compiled_solve_poses()
     params = np.ascontiguousarray(arm._kernel_parameters(), dtype=np.float64)
     modes = np.array([mode for mode, _, _, _ in arm._joint_modes], dtype=np.int64)
     lower = np.array([low for _, low, _, _ in arm._joint_modes], dtype=np.float64)
@@ -250,13 +378,21 @@ def single_pose_solver(arm: Arm) -> SinglePoseSolver | None:
     kc, dof, k = arm.n_closed_form, arm.dof, arm.n_branches
     check_rotation = arm.target == "pose"
 
-    def solve(pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        if pose.dtype != np.float64 or not pose.flags.c_contiguous:
-            pose = np.ascontiguousarray(pose, dtype=np.float64)
-        q, ok, status = drive(pose, params, kc, dof, k, check_rotation, modes, lower, upper,
-                              slots)
+    def solve_for_arm(poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        q, ok, reach, bad, status = solve(kernel, poses, params, kc, dof, k, check_rotation,
+                                          modes, lower, upper, slots)
         if status:
-            raise ValueError(STATUS_MESSAGES[status])
-        return q, ok
+            where = f" (pose {bad} of the batch)" if len(poses) > 1 else ""
+            raise ValueError(STATUS_MESSAGES[status] + where)
+        return q, ok, reach
 
-    return solve
+    return solve_for_arm
+
+
+def warm_up() -> None:
+    """Compile the driver into its on-disk cache (or load it), before parallel processes
+    would each compile it (``make test``, ``make demo``)."""
+    from . import make_arm
+
+    arm = make_arm("cartesian")
+    arm.ik(arm.fk(arm.home))

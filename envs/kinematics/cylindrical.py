@@ -18,8 +18,8 @@ from typing import ClassVar
 import numpy as np
 
 from .arm import PRISMATIC, REVOLUTE, Arm, array_default
-from .rotations import homogeneous, premultiply_rotation, rot_z
-from .wrist import put_wrist_rows, solve_with_wrist, wrist_rotation
+from .rotations import homogeneous, rot_z
+from .wrist import put_wrist_rows, wrist_rotation
 
 _DEG = np.pi / 180.0
 
@@ -53,24 +53,16 @@ class CylindricalArm(Arm):
         rotation = rot_z(phi1) @ wrist_rotation(q[..., 3], q[..., 4], q[..., 5])
         return homogeneous(rotation, position)
 
-    def _ik_candidates(self, pose: np.ndarray) -> list[np.ndarray]:
-        x, y, z = pose[..., 0, 3], pose[..., 1, 3], pose[..., 2, 3]
-        phi1 = np.arctan2(-x, y)
-        positioning = np.stack([z, phi1, np.sqrt(x * x + y * y)], -1)[..., None, :]
-        r_wrist = premultiply_rotation(-phi1, pose[..., :3, :3], axis=2)
-        return solve_with_wrist(positioning, r_wrist[..., None, :, :])
-
-
-def _cylindrical_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
-    """``CylindricalArm._ik_candidates`` for one pose (``envs/kinematics/compiled.py``)."""
+def cylindrical_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
+    """The arm's closed form for one pose (``Arm._kernel``)."""
     x, y, z = m[0, 3], m[1, 3], m[2, 3]
     phi1 = math.atan2(-x, y)
-    # Rz(−φ1)·R row by row, as premultiply_rotation forms it.
+    # Rz(−φ1)·R row by row.
     c, s = math.cos(-phi1), math.sin(-phi1)
     w00, w01, w02 = c * m[0, 0] - s * m[1, 0], c * m[0, 1] - s * m[1, 1], c * m[0, 2] - s * m[1, 2]
     w11 = s * m[0, 1] + c * m[1, 1]
-    radial = math.sqrt(x * x + y * y)  # as the numpy solver forms it (not hypot)
+    radial = math.sqrt(x * x + y * y)
     put_wrist_rows(out, 0, z, phi1, radial, w00, w01, w02, w11, m[2, 0], m[2, 1], m[2, 2])
 
 
-CylindricalArm._kernel = staticmethod(_cylindrical_kernel)
+CylindricalArm._kernel = staticmethod(cylindrical_kernel)

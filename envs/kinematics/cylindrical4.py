@@ -52,19 +52,8 @@ class Cylindrical4Arm(Arm):
         position = np.stack([-radial * np.sin(phi1), radial * np.cos(phi1), q[..., 0]], -1)
         return homogeneous(rot_z(phi1) @ rot_y(q[..., 3]), position)
 
-    def _ik_candidates(self, pose: np.ndarray) -> np.ndarray:
-        x, y, z = pose[..., 0, 3], pose[..., 1, 3], pose[..., 2, 3]
-        phi1 = np.arctan2(-x, y)
-        local = np.swapaxes(rot_z(phi1), -1, -2) @ pose[..., :3, :3]
-        phi2 = np.arctan2(local[..., 0, 2], local[..., 0, 0])  # the paper's atan(−n31/n33)
-        residual = np.max(np.abs(local - rot_y(phi2)), axis=(-1, -2))
-        q = np.stack([z, phi1, np.hypot(x, y), phi2], -1)
-        q = np.where((residual <= CONSTRAINT_TOL)[..., None], q, np.nan)
-        return q[..., None, :]
-
-
-def _cylindrical4_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
-    """``Cylindrical4Arm._ik_candidates`` for one pose (``envs/kinematics/compiled.py``)."""
+def cylindrical4_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
+    """The arm's closed form for one pose (``Arm._kernel``)."""
     x, y, z = m[0, 3], m[1, 3], m[2, 3]
     phi1 = math.atan2(-x, y)
     c, s = math.cos(phi1), math.sin(phi1)
@@ -80,7 +69,7 @@ def _cylindrical4_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
         abs(l20 + s2), abs(l21), abs(l22 - c2),
     )
     if residual <= CONSTRAINT_TOL:
-        out[0, 0], out[0, 1], out[0, 2], out[0, 3] = z, phi1, np.hypot(x, y), phi2
+        out[0, 0], out[0, 1], out[0, 2], out[0, 3] = z, phi1, math.sqrt(x * x + y * y), phi2
 
 
-Cylindrical4Arm._kernel = staticmethod(_cylindrical4_kernel)
+Cylindrical4Arm._kernel = staticmethod(cylindrical4_kernel)

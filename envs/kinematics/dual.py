@@ -58,7 +58,7 @@ import numpy as np
 
 from .arm import PRISMATIC, REVOLUTE, Arm, array_default
 from .rotations import homogeneous, rot_x, rot_z
-from .wrist import WRIST_SINGULAR_TOL, solve_yxy_wrist, wrist_branches_scalar
+from .wrist import WRIST_SINGULAR_TOL, wrist_branches
 
 _DEG = np.pi / 180.0
 
@@ -70,28 +70,31 @@ COINCIDENT_TOL = 1e-9
 
 
 def solve_zxz(rotation: np.ndarray) -> np.ndarray:
-    """All (α, β, γ) with Rz(α)·Rx(β)·Rz(γ) = ``rotation`` (…, 3, 3).
-
-    The shared Y–X–Y wrist solver in another basis: with P = Rx(90°), which takes y to z
-    and keeps x, Rz(α)Rx(β)Rz(γ) = P·Ry(α)Rx(β)Ry(γ)·Pᵀ. So the rows, the flip and the
-    singular convention are the wrist's: row 0 has β ≥ 0, row 1 is (α + π, −β, γ + π); at
-    β = 0 or π the free angle is split evenly and both rows describe the same rotation.
-    """
-    return solve_yxy_wrist(_Y_TO_Z.T @ rotation @ _Y_TO_Z)
+    """All (α, β, γ) with Rz(α)·Rx(β)·Rz(γ) = ``rotation`` (3, 3), as a (2, 3) array
+    (``zxz_branches`` on its entries)."""
+    r = np.asarray(rotation, dtype=np.float64)
+    if r.shape != (3, 3):
+        raise ValueError(f"rotation must have shape (3, 3), got {r.shape}")
+    return np.array(zxz_branches(*(float(value) for value in r.ravel())))
 
 
 _Y_TO_Z = rot_x(np.pi / 2)
-#: Its entries cos(π/2) (6e-17, not 0) and sin(π/2), for ``zxz_scalar``.
+#: Its entries cos(π/2) (6e-17, not 0) and sin(π/2), for ``zxz_branches``.
 _PC, _PS = float(_Y_TO_Z[1, 1]), float(_Y_TO_Z[2, 1])
 
 
-def zxz_scalar(
+def zxz_branches(
     a00: float, a01: float, a02: float, a10: float, a11: float, a12: float, a20: float,
     a21: float, a22: float,
 ) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
-    """``solve_zxz`` for one rotation given as floats: ((α, β, γ), (α', β', γ')).
+    """Both (α, β, γ) with Rz(α)·Rx(β)·Rz(γ) = A, for A given entry by entry as floats:
+    ((α, β, γ), (α', β', γ')), for the IK kernels.
 
-    M = Pᵀ·A·P entry by entry (P = ``_Y_TO_Z``, its 6e-17 entries kept), then the wrist."""
+    The shared Y–X–Y wrist solver in another basis: with P = Rx(90°) (``_Y_TO_Z``), which
+    takes y to z and keeps x, Rz(α)Rx(β)Rz(γ) = P·Ry(α)Rx(β)Ry(γ)·Pᵀ. So the rows, the flip
+    and the singular convention are the wrist's: row 0 has β ≥ 0, row 1 is
+    (α + π, −β, γ + π); at β = 0 or π the free angle is split evenly and both rows describe
+    the same rotation. M = Pᵀ·A·P is formed entry by entry (P's 6e-17 entries kept)."""
     pc, ps = _PC, _PS
     # B = A·P, then M = Pᵀ·B.
     b01, b02 = a01 * pc + a02 * ps, a02 * pc - a01 * ps
@@ -100,7 +103,7 @@ def zxz_scalar(
     m00, m01, m02 = a00, b01, b02
     m11 = pc * b11 + ps * b21
     m20, m21, m22 = pc * a20 - ps * a10, pc * b21 - ps * b11, pc * b22 - ps * b12
-    return wrist_branches_scalar(m00, m01, m02, m11, m20, m21, m22)
+    return wrist_branches(m00, m01, m02, m11, m20, m21, m22)
 
 
 def _relative_pose(
@@ -196,30 +199,6 @@ class DualRrpRppArm(Arm):
         r4 = rot_z(phi6)
         p4 = _apply(r4, np.stack([q[..., 5], np.full_like(phi6, self.b0), q[..., 4]], -1))
         return _relative_pose(r3, p3, r4, p4)
-
-    def _ik_candidates(self, pose: np.ndarray) -> np.ndarray:
-        rotation, t = pose[..., :3, :3], pose[..., :3, 3]
-        # R34ᵀ = Rz(−φ6)·Rx(φ1)·Rz(φ2)
-        angles = solve_zxz(np.swapaxes(rotation, -1, -2))
-        phi1, phi2, phi6 = angles[..., 1], angles[..., 2], -angles[..., 0]
-        s3_mid = 0.5 * (self.joint_limits[2, 0] + self.joint_limits[2, 1])
-        singular = np.hypot(rotation[..., 0, 2], rotation[..., 1, 2]) < WRIST_SINGULAR_TOL
-        if np.any(singular):
-            phi1, phi2, phi6 = self._singular_angles(
-                rotation, t, s3_mid, phi1, phi2, phi6, singular
-            )
-        # Arm 2's joint frame sees C3 + R3·t = C4 at (s4, b0, s5) + s3 along R4ᵀ·x3.
-        r3, p3_no_slide = self._arm1(phi1, phi2, np.zeros_like(phi1))
-        r4t = np.swapaxes(rot_z(phi6), -1, -2)
-        w = _apply(r4t, p3_no_slide + _apply(r3, t[..., None, :]))
-        d = _apply(r4t, r3[..., :, 0])
-        gap = self.b0 - w[..., 1]
-        parallel = np.abs(d[..., 1]) < SLIDE_PARALLEL_TOL
-        s3 = gap / np.where(parallel, 1.0, d[..., 1])
-        s3 = np.where(parallel, np.where(np.abs(gap) <= COINCIDENT_TOL, s3_mid, np.nan), s3)
-        s4 = w[..., 0] + s3 * d[..., 0]
-        s5 = w[..., 2] + s3 * d[..., 2]
-        return np.stack([phi1, phi2, s3, phi6, s5, s4], -1)
 
     def _kernel_parameters(self) -> np.ndarray:
         s3_mid = 0.5 * (self.joint_limits[2, 0] + self.joint_limits[2, 1])
@@ -322,18 +301,6 @@ class DualRrrPppArm(Arm):
         p4 = np.stack([q[..., 5], self.b0 + q[..., 3], self.h + q[..., 4]], -1)
         return _relative_pose(r3, p3, np.broadcast_to(np.eye(3), r3.shape), p4)
 
-    def _ik_candidates(self, pose: np.ndarray) -> np.ndarray:
-        rotation, t = pose[..., :3, :3], pose[..., :3, 3]
-        # R3 = R34ᵀ because the gantry never turns.
-        angles = solve_zxz(np.swapaxes(rotation, -1, -2))
-        phi1, phi2, phi3 = angles[..., 0], angles[..., 1], angles[..., 2]
-        r3, p3 = self._arm1(phi1, phi2, phi3)
-        p4 = p3 + _apply(r3, t[..., None, :])
-        return np.stack(
-            [phi1, phi2, phi3, p4[..., 1] - self.b0, p4[..., 2] - self.h, p4[..., 0]], -1
-        )
-
-
 @dataclass(frozen=True, eq=False)
 class DualPprPrrArm(Arm):
     """PPR–PRR (fig. 3): an XY carriage with a turning link and a lift with a two-axis head.
@@ -408,32 +375,15 @@ class DualPprPrrArm(Arm):
         p4 = offset + np.stack([np.zeros_like(phi3), np.zeros_like(phi3), q[..., 3]], -1)
         return _relative_pose(r3, p3, r4, p4)
 
-    def _ik_candidates(self, pose: np.ndarray) -> np.ndarray:
-        rotation, t = pose[..., :3, :3], pose[..., :3, 3]
-        # R34 = Rz(−φ3)·Rx(φ5)·Rz(φ6)
-        angles = solve_zxz(rotation)
-        phi3, phi5, phi6 = -angles[..., 0], angles[..., 1], angles[..., 2]
-        _, offset = self._arm2_offset(phi5, phi6)
-        # C4 = (s1, s2, l1) + Rz(φ3)·(l3 + a, b, c) = (0, 0, s4) + offset  (eqs. 13, 16)
-        reach = np.stack(
-            np.broadcast_arrays(self.l3 + t[..., None, 0], t[..., None, 1], t[..., None, 2]), -1
-        )
-        arm1 = _apply(rot_z(phi3), reach)
-        s1 = offset[..., 0] - arm1[..., 0]
-        s2 = offset[..., 1] - arm1[..., 1]
-        s4 = self.l1 + arm1[..., 2] - offset[..., 2]
-        return np.stack([s1, s2, phi3, s4, phi5, phi6], -1)
-
-
 # ------------------------------------------------------------------ single-pose kernels
-def _rrp_rpp_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
-    """``DualRrpRppArm._ik_candidates`` for one pose (``envs/kinematics/compiled.py``)."""
+def rrp_rpp_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
+    """``DualRrpRppArm``'s closed form for one pose (``Arm._kernel``)."""
     a0, l1, b0, s3_mid = p[0], p[1], p[2], p[3]
     t0, t1, t2 = m[0, 3], m[1, 3], m[2, 3]
     # R34ᵀ = Rz(−φ6)·Rx(φ1)·Rz(φ2)
-    rows = zxz_scalar(m[0, 0], m[1, 0], m[2, 0], m[0, 1], m[1, 1], m[2, 1],
+    rows = zxz_branches(m[0, 0], m[1, 0], m[2, 0], m[0, 1], m[1, 1], m[2, 1],
                       m[0, 2], m[1, 2], m[2, 2])
-    singular = np.hypot(m[0, 2], m[1, 2]) < WRIST_SINGULAR_TOL
+    singular = math.sqrt(m[0, 2] * m[0, 2] + m[1, 2] * m[1, 2]) < WRIST_SINGULAR_TOL
     if singular:
         eps = 1.0 if m[2, 2] >= 0.0 else -1.0
         theta = math.atan2(eps * m[1, 0], m[0, 0])
@@ -444,9 +394,9 @@ def _rrp_rpp_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
         alpha, beta, gamma = rows[branch]
         phi1, phi2, phi6 = beta, gamma, -alpha
         if singular:
-            phi6 = base if branch == 0 else np.pi - base
+            phi6 = base if branch == 0 else math.pi - base
             phi2 = eps * (phi6 - theta)
-            phi1 = 0.0 if eps > 0.0 else np.pi
+            phi1 = 0.0 if eps > 0.0 else math.pi
         c1, s1, c2, s2 = math.cos(phi1), math.sin(phi1), math.cos(phi2), math.sin(phi2)
         c6, s6 = math.cos(phi6), math.sin(phi6)
         # R3 = Rx(φ1)·Rz(φ2); C3 without the slide; then both in arm 2's joint frame.
@@ -469,12 +419,12 @@ def _rrp_rpp_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
         out[branch, 3], out[branch, 4], out[branch, 5] = phi6, w2 + s3 * d2, w0 + s3 * d0
 
 
-def _rrr_ppp_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
-    """``DualRrrPppArm._ik_candidates`` for one pose (``envs/kinematics/compiled.py``)."""
+def rrr_ppp_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
+    """``DualRrrPppArm``'s closed form for one pose (``Arm._kernel``)."""
     h, l1, l2, l3, b0 = p[0], p[1], p[2], p[3], p[4]
     t0, t1, t2 = m[0, 3], m[1, 3], m[2, 3]
     # R3 = R34ᵀ because the gantry never turns.
-    rows = zxz_scalar(m[0, 0], m[1, 0], m[2, 0], m[0, 1], m[1, 1], m[2, 1],
+    rows = zxz_branches(m[0, 0], m[1, 0], m[2, 0], m[0, 1], m[1, 1], m[2, 1],
                       m[0, 2], m[1, 2], m[2, 2])
     for branch in range(2):
         phi1, phi2, phi3 = rows[branch]
@@ -493,12 +443,12 @@ def _rrr_ppp_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
         out[branch, 3], out[branch, 4], out[branch, 5] = y - b0, z - h, x
 
 
-def _ppr_prr_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
-    """``DualPprPrrArm._ik_candidates`` for one pose (``envs/kinematics/compiled.py``)."""
+def ppr_prr_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
+    """``DualPprPrrArm``'s closed form for one pose (``Arm._kernel``)."""
     l1, l3, l4, l5 = p[0], p[1], p[2], p[3]
     t0, t1, t2 = m[0, 3], m[1, 3], m[2, 3]
     # R34 = Rz(−φ3)·Rx(φ5)·Rz(φ6)
-    rows = zxz_scalar(m[0, 0], m[0, 1], m[0, 2], m[1, 0], m[1, 1], m[1, 2],
+    rows = zxz_branches(m[0, 0], m[0, 1], m[0, 2], m[1, 0], m[1, 1], m[1, 2],
                       m[2, 0], m[2, 1], m[2, 2])
     for branch in range(2):
         alpha, phi5, phi6 = rows[branch]
@@ -515,6 +465,6 @@ def _ppr_prr_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
         out[branch, 3], out[branch, 4], out[branch, 5] = l1 + u2 - o2, phi5, phi6
 
 
-DualRrpRppArm._kernel = staticmethod(_rrp_rpp_kernel)
-DualRrrPppArm._kernel = staticmethod(_rrr_ppp_kernel)
-DualPprPrrArm._kernel = staticmethod(_ppr_prr_kernel)
+DualRrpRppArm._kernel = staticmethod(rrp_rpp_kernel)
+DualRrrPppArm._kernel = staticmethod(rrr_ppp_kernel)
+DualPprPrrArm._kernel = staticmethod(ppr_prr_kernel)

@@ -46,7 +46,7 @@ from numpy.typing import ArrayLike
 
 from .arm import REVOLUTE, Arm, array_default
 from .rotations import homogeneous
-from .wrist import wrist_branches, wrist_branches_scalar
+from .wrist import wrist_branches
 
 #: |cos β| up to 1 + this is reachable (stretched / folded elbow: both branches coincide).
 REACH_TOL = 1e-9
@@ -234,93 +234,6 @@ class OpwArm(Arm):
         centre = np.stack([cx1 * c1 - cy1 * s1, cx1 * s1 + cy1 * c1, cz1 + self.c1], -1)
         return homogeneous(rotation, centre + self.c4 * rotation[..., :, 2])
 
-    def _ik_candidates(self, pose: np.ndarray) -> list[np.ndarray]:
-        a1, a2, b, c1, c2, c3, c4 = self.a1, self.a2, self.b, self.c1, self.c2, self.c3, self.c4
-        k = math.sqrt(a2 * a2 + c3 * c3)
-        psi3 = math.atan2(a2, c3)
-        cos_psi, sin_psi = c3 / k, a2 / k
-        n = [[pose[..., i, j] for j in range(3)] for i in range(3)]
-        cx = pose[..., 0, 3] - c4 * n[0][2]
-        cy = pose[..., 1, 3] - c4 * n[1][2]
-        cz = pose[..., 2, 3] - c4 * n[2][2]
-
-        # θ1: Rz(θ1)·(x, b) = (cx, cy) with x = ±√(r² − b²) (front, back).
-        r2 = cx * cx + cy * cy
-        radius = np.sqrt(r2)
-        along = np.sqrt(np.maximum(r2 - b * b, 0.0))
-        outside = radius < abs(b) - OFFSET_TOL  # inside the cylinder |b| about the j1 axis
-        if np.any(outside):
-            along = np.where(outside, np.nan, along)
-        x = along[..., None] * _SIDE  # (…, shoulder)
-        num_s = cy[..., None] * x - cx[..., None] * b
-        num_c = cx[..., None] * x + cy[..., None] * b
-        theta1 = np.arctan2(num_s, num_c)
-        norm1 = np.sqrt(num_s * num_s + num_c * num_c)
-        on_axis = (radius < ON_AXIS_TOL)[..., None] & (b == 0.0)
-        if np.any(on_axis | (norm1 == 0.0)):
-            safe1 = np.where(on_axis | (norm1 == 0.0), 1.0, norm1)
-            theta1 = np.where(on_axis, np.where(_SIDE > 0, 0.0, np.pi), theta1)
-            cos1 = np.where(on_axis, _SIDE, num_c / safe1)
-            sin1 = np.where(on_axis, 0.0, num_s / safe1)
-        else:
-            cos1, sin1 = num_c / norm1, num_s / norm1
-
-        # θ2, θ3: the planar two-link chain from the shoulder (a1, c1) to (x, cz).
-        dx = x - a1
-        dz = (cz - c1)[..., None]
-        cos_b = (dx * dx + dz * dz - c2 * c2 - k * k) / (2.0 * c2 * k)
-        cos_b = np.where(np.abs(cos_b) <= 1.0 + REACH_TOL, np.clip(cos_b, -1.0, 1.0), np.nan)
-        cos_b = cos_b[..., None]  # (…, shoulder, 1) against the elbow axis
-        bend = np.sqrt(1.0 - cos_b * cos_b)
-        sin_b = bend * _ELBOW_SIGN  # (…, 2, 2)
-        # β = ±atan2(|sin β|, cos β): atan2 is odd in its first argument.
-        theta3 = np.arctan2(bend, cos_b) * _ELBOW_SIGN - psi3
-        along_arm, across = c2 + k * cos_b, k * sin_b
-        dx, dz = dx[..., None], dz[..., None]
-        s2 = along_arm * dx - across * dz
-        c2_ = across * dx + along_arm * dz
-        theta2 = np.arctan2(s2, c2_)
-        norm2 = np.sqrt(s2 * s2 + c2_ * c2_)
-        folded = norm2 == 0.0  # wrist centre on the j2 axis (c2 = k): θ2 is free, set 0
-        norm2 = np.where(folded, 1.0, norm2)
-        cos2, sin2 = np.where(folded, 1.0, c2_ / norm2), s2 / norm2
-        cos2b, sin2b = cos2 * cos_b - sin2 * sin_b, sin2 * cos_b + cos2 * sin_b
-        cos23 = cos2b * cos_psi + sin2b * sin_psi  # θ2 + θ3 = θ2 + β − ψ3
-        sin23 = sin2b * cos_psi - cos2b * sin_psi
-
-        # Wrist: R_w = Ry(θ23)ᵀ·Rz(θ1)ᵀ·R = Rz(θ4)Ry(θ5)Rz(θ6), solved as the Y–X–Y wrist
-        # of M = PᵀR_wP with P the cyclic permutation x→y→z→x (M_ij = R_w[π(i)][π(j)],
-        # π = (1, 2, 0)). Only the entries the solver reads are formed.
-        cos1, sin1 = cos1[..., None], sin1[..., None]
-        t0 = [cos1 * n[0][j][..., None, None] + sin1 * n[1][j][..., None, None] for j in range(3)]
-        t1 = [cos1 * n[1][j][..., None, None] - sin1 * n[0][j][..., None, None] for j in range(3)]
-        t2 = [n[2][j][..., None, None] for j in range(3)]
-        shape = cos23.shape
-        w00 = cos23 * t0[0] - sin23 * t2[0]
-        w01 = cos23 * t0[1] - sin23 * t2[1]
-        w02 = cos23 * t0[2] - sin23 * t2[2]
-        w22 = sin23 * t0[2] + cos23 * t2[2]
-        w10, w11, w12 = (np.broadcast_to(t1[j], shape) for j in range(3))
-        theta4, theta5, theta6 = wrist_branches(w11, w12, w10, w22, w01, w02, w00)
-
-        batch = theta2.shape[:-2]
-        # Joint values, each on the smallest array it varies over, then spread to 8 rows.
-        q1, q2, q3, q4, q5, q6 = (
-            angle if offset == 0.0 and sign == 1 else (angle + offset) * sign
-            for angle, offset, sign in zip(
-                (theta1, theta2, theta3, theta4, theta5, theta6),
-                self.offsets, self.sign_corrections, strict=True,
-            )
-        )
-        return [
-            np.repeat(q1, 4, axis=-1),
-            np.repeat(q2.reshape((*batch, 4)), 2, axis=-1),
-            np.repeat(q3.reshape((*batch, 4)), 2, axis=-1),
-            q4.reshape((*batch, 8)),
-            q5.reshape((*batch, 8)),
-            q6.reshape((*batch, 8)),
-        ]
-
     def _kernel_parameters(self) -> np.ndarray:
         return np.array(
             [self.a1, self.a2, self.b, self.c1, self.c2, self.c3, self.c4,
@@ -328,9 +241,10 @@ class OpwArm(Arm):
         )
 
 
-def _opw_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
-    """``OpwArm._ik_candidates`` for one pose, formula for formula, on floats (the compiled
-    single-pose path, ``envs/kinematics/compiled.py``)."""
+def opw_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
+    """The OPW closed form for one pose (``Arm._kernel``): the 8 rows front/back ×
+    elbow up/down × wrist +/−, before offsets and signs are applied, then
+    joint = (θ + offset) · sign. ``p`` is ``_kernel_parameters()``."""
     a1, a2, b, c1, c2, c3, c4 = p[0], p[1], p[2], p[3], p[4], p[5], p[6]
     k = math.sqrt(a2 * a2 + c3 * c3)
     psi3 = math.atan2(a2, c3)
@@ -338,6 +252,8 @@ def _opw_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
     cx = m[0, 3] - c4 * m[0, 2]
     cy = m[1, 3] - c4 * m[1, 2]
     cz = m[2, 3] - c4 * m[2, 2]
+    # θ1: Rz(θ1)·(x, b) = (cx, cy) with x = ±√(r² − b²) (front, back); no solution inside
+    # the cylinder of radius |b| about the j1 axis.
     r2 = cx * cx + cy * cy
     radius = math.sqrt(r2)
     if not radius >= abs(b) - OFFSET_TOL:
@@ -357,6 +273,7 @@ def _opw_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
             if norm1 == 0.0:
                 norm1 = 1.0
             cos1, sin1 = num_c / norm1, num_s / norm1
+        # θ2, θ3: the planar two-link chain from the shoulder (a1, c1) to (x, cz).
         dx, dz = x - a1, cz - c1
         cos_b = (dx * dx + dz * dz - c2 * c2 - k * k) / (2.0 * c2 * k)
         if not abs(cos_b) <= 1.0 + REACH_TOL:
@@ -374,24 +291,28 @@ def _opw_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
             sign = side if elbow == 0 else -side  # elbow up: β > 0 in front, β < 0 behind
             bend = math.sqrt(1.0 - cos_b * cos_b)
             sin_b = bend * sign
+            # β = ±atan2(|sin β|, cos β): atan2 is odd in its first argument.
             theta3 = math.atan2(bend, cos_b) * sign - psi3
             along_arm, across = c2 + k * cos_b, k * sin_b
             s2 = along_arm * dx - across * dz
             c2_ = across * dx + along_arm * dz
             theta2 = math.atan2(s2, c2_)
             norm2 = math.sqrt(s2 * s2 + c2_ * c2_)
-            if norm2 == 0.0:
+            if norm2 == 0.0:  # wrist centre on the j2 axis (c2 = k): θ2 is free, atan2 gives 0
                 cos2, sin2 = 1.0, s2
             else:
                 cos2, sin2 = c2_ / norm2, s2 / norm2
             cos2b, sin2b = cos2 * cos_b - sin2 * sin_b, sin2 * cos_b + cos2 * sin_b
-            cos23 = cos2b * cos_psi + sin2b * sin_psi
+            cos23 = cos2b * cos_psi + sin2b * sin_psi  # θ2 + θ3 = θ2 + β − ψ3
             sin23 = sin2b * cos_psi - cos2b * sin_psi
+            # Wrist: R_w = Ry(θ23)ᵀ·Rz(θ1)ᵀ·R = Rz(θ4)Ry(θ5)Rz(θ6), solved as the Y–X–Y
+            # wrist of M = PᵀR_wP with P the cyclic permutation x→y→z→x
+            # (M_ij = R_w[π(i)][π(j)], π = (1, 2, 0)). Only the entries it reads are formed.
             w00 = cos23 * t00 - sin23 * t20
             w01 = cos23 * t01 - sin23 * t21
             w02 = cos23 * t02 - sin23 * t22
             w22 = sin23 * t02 + cos23 * t22
-            plus, minus = wrist_branches_scalar(t11, t12, t10, w22, w01, w02, w00)
+            plus, minus = wrist_branches(t11, t12, t10, w22, w01, w02, w00)
             for wrist in range(2):
                 angles = (theta1, theta2, theta3) + (plus if wrist == 0 else minus)
                 for joint in range(6):
@@ -399,7 +320,7 @@ def _opw_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
                 row += 1
 
 
-OpwArm._kernel = staticmethod(_opw_kernel)
+OpwArm._kernel = staticmethod(opw_kernel)
 
 
 # --------------------------------------------------------------------------- named arms

@@ -123,40 +123,21 @@ class RodMechanism(Arm):
         position = np.stack([r * np.sin(q3), r * np.cos(q3), z], -1)
         return homogeneous(rot_z(-q3) @ rot_x(q1 - q2), position)
 
-    def _ik_candidates(self, pose: np.ndarray) -> np.ndarray:
-        x, y, z = pose[..., 0, 3], pose[..., 1, 3], pose[..., 2, 3]
-        horizontal = np.hypot(x, y)
-        q3_plus = np.where(horizontal < ON_AXIS_TOL, 0.0, np.arctan2(x, y))
-        q3 = np.stack([q3_plus, q3_plus + np.pi], -1)  # (…, 2) sign of r
-        # In-plane target relative to O1, for r = +ρ and r = −ρ.
-        u = np.stack([horizontal, -horizontal], -1) + self.a / 2
-        v = np.broadcast_to(z[..., None], u.shape)
-        b, lpp = self.b, self.lp_prime
-        # β = π − q2 − ψ is the turn from O1O4 to O4P: |O1P|² = b² + l'p² + 2·b·l'p·cos β.
-        cos_beta = (u**2 + v**2 - b**2 - lpp**2) / (2.0 * b * lpp)
-        reachable = np.abs(cos_beta) <= 1.0 + REACH_TOL
-        cos_beta = np.where(reachable, np.clip(cos_beta, -1.0, 1.0), np.nan)
-        bend = np.arccos(cos_beta)
-        beta = np.stack([bend, -bend], -1)  # (…, side, elbow); sin β = sin(q2 + ψ)
-        block = np.arctan2(v, u)[..., None] - np.arctan2(lpp * np.sin(beta), b + lpp * np.cos(beta))
-        q1 = block - self.gamma
-        q2 = np.pi - self.psi - beta
-        q3 = np.broadcast_to(q3[..., None], beta.shape)
-        return np.stack([q3, q1, q2], -1).reshape((*beta.shape[:-2], 4, 3))
-
     def _kernel_parameters(self) -> np.ndarray:
         return np.array([self.lp_prime, self.b, self.a, self.gamma, self.psi])
 
 
-def _rod_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
-    """``RodMechanism._ik_candidates`` for one target (``envs/kinematics/compiled.py``)."""
+def rod_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
+    """The mechanism's closed form for one target (``Arm._kernel``)."""
     lpp, b, a, gamma, psi = p[0], p[1], p[2], p[3], p[4]
     x, y, z = m[0, 3], m[1, 3], m[2, 3]
-    horizontal = np.hypot(x, y)
+    horizontal = math.sqrt(x * x + y * y)
     q3_plus = 0.0 if horizontal < ON_AXIS_TOL else math.atan2(x, y)
+    # In-plane target relative to O1, for r = +ρ and r = −ρ.
     for side in range(2):
         u = (horizontal if side == 0 else -horizontal) + a / 2
-        q3 = q3_plus if side == 0 else q3_plus + np.pi
+        q3 = q3_plus if side == 0 else q3_plus + math.pi
+        # β = π − q2 − ψ is the turn from O1O4 to O4P: |O1P|² = b² + l'p² + 2·b·l'p·cos β.
         cos_beta = (u**2 + z**2 - b**2 - lpp**2) / (2.0 * b * lpp)
         if not abs(cos_beta) <= 1.0 + REACH_TOL:
             continue
@@ -165,7 +146,7 @@ def _rod_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
             beta = bend if elbow == 0 else -bend
             block = math.atan2(z, u) - math.atan2(lpp * math.sin(beta), b + lpp * math.cos(beta))
             row = 2 * side + elbow
-            out[row, 0], out[row, 1], out[row, 2] = q3, block - gamma, np.pi - psi - beta
+            out[row, 0], out[row, 1], out[row, 2] = q3, block - gamma, math.pi - psi - beta
 
 
-RodMechanism._kernel = staticmethod(_rod_kernel)
+RodMechanism._kernel = staticmethod(rod_kernel)

@@ -20,8 +20,8 @@ from typing import ClassVar
 import numpy as np
 
 from .arm import PRISMATIC, REVOLUTE, Arm, array_default
-from .rotations import homogeneous, premultiply_rotation, rot_x, rot_z
-from .wrist import put_wrist_rows, solve_with_wrist, wrist_rotation
+from .rotations import homogeneous, rot_x, rot_z
+from .wrist import put_wrist_rows, wrist_rotation
 
 _DEG = np.pi / 180.0
 
@@ -69,27 +69,17 @@ class SphericalArm(Arm):
         rotation = rot_z(phi1) @ rot_x(phi2) @ wrist_rotation(q[..., 3], q[..., 4], q[..., 5])
         return homogeneous(rotation, position)
 
-    def _ik_candidates(self, pose: np.ndarray) -> list[np.ndarray]:
-        x, y, z = pose[..., 0, 3], pose[..., 1, 3], pose[..., 2, 3]
-        phi1 = np.arctan2(-x, y)
-        reach, height = np.hypot(x, y), z - self.l1
-        phi2 = np.arctan2(height, reach)
-        positioning = np.stack([phi1, phi2, np.hypot(reach, height)], -1)[..., None, :]
-        turned = premultiply_rotation(-phi1, pose[..., :3, :3], axis=2)
-        r_wrist = premultiply_rotation(-phi2, turned, axis=0)
-        return solve_with_wrist(positioning, r_wrist[..., None, :, :])
-
     def _kernel_parameters(self) -> np.ndarray:
         return np.array([self.l1])
 
 
-def _spherical_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
-    """``SphericalArm._ik_candidates`` for one pose (``envs/kinematics/compiled.py``)."""
+def spherical_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
+    """The arm's closed form for one pose (``Arm._kernel``)."""
     x, y, z = m[0, 3], m[1, 3], m[2, 3]
     phi1 = math.atan2(-x, y)
-    reach, height = np.hypot(x, y), z - p[0]
+    reach, height = math.sqrt(x * x + y * y), z - p[0]
     phi2 = math.atan2(height, reach)
-    # T = Rz(−φ1)·R, then W = Rx(−φ2)·T, row by row as premultiply_rotation forms them.
+    # T = Rz(−φ1)·R, then W = Rx(−φ2)·T, row by row.
     c, s = math.cos(-phi1), math.sin(-phi1)
     t00, t01, t02 = c * m[0, 0] - s * m[1, 0], c * m[0, 1] - s * m[1, 1], c * m[0, 2] - s * m[1, 2]
     t10, t11, t12 = s * m[0, 0] + c * m[1, 0], s * m[0, 1] + c * m[1, 1], s * m[0, 2] + c * m[1, 2]
@@ -97,8 +87,8 @@ def _spherical_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
     c, s = math.cos(-phi2), math.sin(-phi2)
     w11 = c * t11 - s * t21
     w20, w21, w22 = s * t10 + c * t20, s * t11 + c * t21, s * t12 + c * t22
-    put_wrist_rows(out, 0, phi1, phi2, np.hypot(reach, height),
+    put_wrist_rows(out, 0, phi1, phi2, math.sqrt(reach * reach + height * height),
                    t00, t01, t02, w11, w20, w21, w22)
 
 
-SphericalArm._kernel = staticmethod(_spherical_kernel)
+SphericalArm._kernel = staticmethod(spherical_kernel)

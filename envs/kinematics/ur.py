@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import ClassVar, TypeVar
+from typing import ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -155,108 +155,25 @@ class UrArm(Arm):
                                        _COS_ALPHA[joint], _SIN_ALPHA[joint])
         return pose
 
-    def _ik_candidates(self, pose: np.ndarray) -> list[np.ndarray]:
-        d1, a2, a3, d4, d5, d6 = self.d1, self.a2, self.a3, self.d4, self.d5, self.d6
-        n = [[pose[..., i, j] for j in range(3)] for i in range(3)]
-        p5x = pose[..., 0, 3] - d6 * n[0][2]
-        p5y = pose[..., 1, 3] - d6 * n[1][2]
-        p5z = pose[..., 2, 3] - d6 * n[2][2]
-
-        # θ1: p5 = X·x1 + d4·u with X = ±√(ρ² − d4²) the in-plane reach.
-        rho2 = p5x * p5x + p5y * p5y
-        reach = np.sqrt(np.maximum(rho2 - d4 * d4, 0.0))
-        reach = np.where(np.sqrt(rho2) >= d4 - REACH_TOL, reach, np.nan)
-        x = reach[..., None] * (math.copysign(1.0, a2) * _SHOULDER)  # (…, shoulder)
-        num_s = x * p5y[..., None] + d4 * p5x[..., None]
-        num_c = x * p5x[..., None] - d4 * p5y[..., None]
-        theta1 = np.arctan2(num_s, num_c)
-        norm1 = np.sqrt(num_s * num_s + num_c * num_c)
-        cos1, sin1 = num_c / norm1, num_s / norm1  # norm1 ≥ d4 ρ > 0 when reachable
-
-        # θ5, θ6 from the components of u = (sin θ1, −cos θ1, 0) in frame 6.
-        def dot_u(column: int) -> np.ndarray:
-            return n[0][column][..., None] * sin1 - n[1][column][..., None] * cos1
-
-        xu, yu, zu = dot_u(0), dot_u(1), dot_u(2)
-        sin5_abs = np.sqrt(xu * xu + yu * yu)[..., None]  # (…, shoulder, 1)
-        sin5 = sin5_abs * _WRIST  # (…, shoulder, wrist)
-        cos5 = np.broadcast_to(zu[..., None], sin5.shape)
-        theta5 = np.arctan2(sin5, cos5)
-        singular = sin5_abs < WRIST_SINGULAR_TOL
-        safe = np.where(singular, 1.0, sin5_abs)
-        cos6 = xu[..., None] * _WRIST / safe
-        sin6 = -yu[..., None] * _WRIST / safe
-        if np.any(singular):
-            # Joints 2, 3, 4, 6 parallel: θ6 is free. It is chosen so that the elbow can
-            # reach frame 4 best (``singular_wrist_turn``); both wrist rows coincide.
-            c6, s6 = singular_wrist_turn(
-                cos1 * p5x[..., None] + sin1 * p5y[..., None], (p5z - d1)[..., None],
-                cos1 * n[0][0][..., None] + sin1 * n[1][0][..., None], n[2][0][..., None],
-                cos1 * n[0][1][..., None] + sin1 * n[1][1][..., None], n[2][1][..., None],
-                a2, a3, d5,
-            )
-            cos6 = np.where(singular, c6[..., None], cos6)
-            sin6 = np.where(singular, s6[..., None], sin6)
-        theta6 = np.arctan2(sin6, cos6)
-
-        # Frame 4's origin and x axis.
-        def column(j: int) -> list[np.ndarray]:
-            return [n[i][j][..., None, None] for i in range(3)]
-
-        x6, y6, z6 = column(0), column(1), column(2)
-        p4 = [
-            p[..., None, None] + d5 * (sin6 * x6[i] + cos6 * y6[i])
-            for i, p in enumerate((p5x, p5y, p5z))
-        ]
-        x4 = [cos5 * cos6 * x6[i] - cos5 * sin6 * y6[i] - sin5 * z6[i] for i in range(3)]
-        cos1, sin1 = cos1[..., None], sin1[..., None]
-        # In frame 1 (x1 horizontal, y1 = up, z1 = u): the planar chain of a2, a3.
-        px = cos1 * p4[0] + sin1 * p4[1]
-        py = p4[2] - d1
-        theta234 = np.arctan2(x4[2], cos1 * x4[0] + sin1 * x4[1])
-
-        cos3 = (px * px + py * py - a2 * a2 - a3 * a3) / (2.0 * a2 * a3)
-        cos3 = np.where(np.abs(cos3) <= 1.0 + REACH_TOL, np.clip(cos3, -1.0, 1.0), np.nan)
-        cos3 = cos3[..., None, :]  # (…, shoulder, elbow, wrist)
-        elbow = _elbow_sign(a3)[..., None]  # (shoulder, elbow, 1)
-        sin3 = np.sqrt(1.0 - cos3 * cos3) * elbow
-        theta3 = np.arctan2(sin3, cos3)
-        along, across = a2 + a3 * cos3, a3 * sin3
-        px, py = px[..., None, :], py[..., None, :]
-        theta2 = np.arctan2(along * py - across * px, along * px + across * py)
-        theta4 = theta234[..., None, :] - theta2 - theta3
-
-        shape = theta3.shape
-        batch = shape[:-3]
-        return [
-            np.broadcast_to(theta1[..., None, None], shape).reshape((*batch, 8)),
-            theta2.reshape((*batch, 8)),
-            theta3.reshape((*batch, 8)),
-            theta4.reshape((*batch, 8)),
-            np.broadcast_to(theta5[..., None, :], shape).reshape((*batch, 8)),
-            np.broadcast_to(theta6[..., None, :], shape).reshape((*batch, 8)),
-        ]
-
     def _kernel_parameters(self) -> np.ndarray:
         return np.array([self.d1, self.a2, self.a3, self.d4, self.d5, self.d6])
 
 
 #: ``singular_wrist_turn`` takes and returns floats (the compiled kernel) or arrays.
-_Value = TypeVar("_Value", float, np.ndarray)
 
 
 def singular_wrist_turn(
-    reach: _Value,
-    height: _Value,
-    x6_reach: _Value,
-    x6_height: _Value,
-    y6_reach: _Value,
-    y6_height: _Value,
+    reach: float,
+    height: float,
+    x6_reach: float,
+    x6_height: float,
+    y6_reach: float,
+    y6_height: float,
     a2: float,
     a3: float,
     d5: float,
-) -> tuple[_Value, _Value]:
-    """(cos θ6, sin θ6) at sin θ5 = 0, where θ6 is free (arrays or floats).
+) -> tuple[float, float]:
+    """(cos θ6, sin θ6) at sin θ5 = 0, where θ6 is free.
 
     With the tool axis along the joint 2–4 axes, frame 4's origin p4 = p5 − d5·z4 can be any
     point of the circle of radius d5 about the wrist point p5 in the arm plane (z4 ⟂ u).
@@ -267,32 +184,26 @@ def singular_wrist_turn(
     reachable singular pose always has solutions, and θ6 follows from z4 = −(sin θ6·x6 +
     cos θ6·y6). The arguments are p5 and the in-plane components of x6, y6 in frame 1.
     """
-    rho = np.hypot(reach, height)
+    rho = math.sqrt(reach * reach + height * height)
     middle = max(abs(a2), abs(a3))
-    target = np.minimum(np.maximum(middle, rho - d5), rho + d5)
-    ratio = (rho * rho + d5 * d5 - target * target) / (2.0 * d5 * np.where(rho > 0.0, rho, 1.0))
-    phi = np.arctan2(height, reach) + np.arccos(np.minimum(np.maximum(ratio, -1.0), 1.0))
-    z_reach, z_height = np.cos(phi), np.sin(phi)
+    target = min(max(middle, rho - d5), rho + d5)
+    ratio = (rho * rho + d5 * d5 - target * target) / (2.0 * d5 * (rho if rho > 0.0 else 1.0))
+    phi = math.atan2(height, reach) + math.acos(min(max(ratio, -1.0), 1.0))
+    z_reach, z_height = math.cos(phi), math.sin(phi)
     sin6 = -(z_reach * x6_reach + z_height * x6_height)
     cos6 = -(z_reach * y6_reach + z_height * y6_height)
-    norm = np.hypot(sin6, cos6)
+    norm = math.sqrt(sin6 * sin6 + cos6 * cos6)
     return cos6 / norm, sin6 / norm
 
 
-def _elbow_sign(a3: float) -> np.ndarray:
-    """Sign of sin θ3 for (shoulder, elbow): elbow up is sin θ3 = −sign(a3) in front and
-    +sign(a3) behind (``docs/kinematics_opw_ur.md``)."""
-    s = math.copysign(1.0, a3)
-    return np.array([[-s, s], [s, -s]])
-
-
-def _ur_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
-    """``UrArm._ik_candidates`` for one pose, formula for formula, on floats (the compiled
-    single-pose path, ``envs/kinematics/compiled.py``)."""
+def ur_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
+    """The UR closed form (Hawkins 2013) for one pose (``Arm._kernel``): the 8 rows
+    shoulder front/back × elbow up/down × wrist +/−. ``p`` is ``_kernel_parameters()``."""
     d1, a2, a3, d4, d5, d6 = p[0], p[1], p[2], p[3], p[4], p[5]
     p5x = m[0, 3] - d6 * m[0, 2]
     p5y = m[1, 3] - d6 * m[1, 2]
     p5z = m[2, 3] - d6 * m[2, 2]
+    # θ1: p5 = X·x1 + d4·u with X = ±√(ρ² − d4²) the in-plane reach.
     rho2 = p5x * p5x + p5y * p5y
     if not math.sqrt(rho2) >= d4 - REACH_TOL:
         return
@@ -304,7 +215,8 @@ def _ur_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
         num_s, num_c = x * p5y + d4 * p5x, x * p5x - d4 * p5y
         theta1 = math.atan2(num_s, num_c)
         norm1 = math.sqrt(num_s * num_s + num_c * num_c)
-        cos1, sin1 = num_c / norm1, num_s / norm1
+        cos1, sin1 = num_c / norm1, num_s / norm1  # norm1 ≥ d4 ρ > 0 when reachable
+        # θ5, θ6 from the components of u = (sin θ1, −cos θ1, 0) in frame 6.
         xu = m[0, 0] * sin1 - m[1, 0] * cos1
         yu = m[0, 1] * sin1 - m[1, 1] * cos1
         zu = m[0, 2] * sin1 - m[1, 2] * cos1
@@ -315,6 +227,8 @@ def _ur_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
             sin5, cos5 = sin5_abs * w, zu
             theta5 = math.atan2(sin5, cos5)
             if singular:
+                # Joints 2, 3, 4, 6 parallel: θ6 is free. It is chosen so that the elbow can
+                # reach frame 4 best (``singular_wrist_turn``); both wrist rows coincide.
                 cos6, sin6 = singular_wrist_turn(
                     cos1 * p5x + sin1 * p5y, p5z - d1,
                     cos1 * m[0, 0] + sin1 * m[1, 0], m[2, 0],
@@ -324,12 +238,14 @@ def _ur_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
             else:
                 cos6, sin6 = xu * w / sin5_abs, -yu * w / sin5_abs
             theta6 = math.atan2(sin6, cos6)
+            # Frame 4's origin and x axis.
             p4x = p5x + d5 * (sin6 * m[0, 0] + cos6 * m[0, 1])
             p4y = p5y + d5 * (sin6 * m[1, 0] + cos6 * m[1, 1])
             p4z = p5z + d5 * (sin6 * m[2, 0] + cos6 * m[2, 1])
             x4x = cos5 * cos6 * m[0, 0] - cos5 * sin6 * m[0, 1] - sin5 * m[0, 2]
             x4y = cos5 * cos6 * m[1, 0] - cos5 * sin6 * m[1, 1] - sin5 * m[1, 2]
             x4z = cos5 * cos6 * m[2, 0] - cos5 * sin6 * m[2, 1] - sin5 * m[2, 2]
+            # In frame 1 (x1 horizontal, y1 = up, z1 = u): the planar chain of a2, a3.
             px = cos1 * p4x + sin1 * p4y
             py = p4z - d1
             theta234 = math.atan2(x4z, cos1 * x4x + sin1 * x4y)
@@ -338,6 +254,7 @@ def _ur_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
                 continue
             cos3 = min(1.0, max(-1.0, cos3))
             for elbow in range(2):
+                # Elbow up is sin θ3 = −sign(a3) in front and +sign(a3) behind.
                 sign = (-s_a3 if elbow == 0 else s_a3) * side
                 sin3 = math.sqrt(1.0 - cos3 * cos3) * sign
                 theta3 = math.atan2(sin3, cos3)
@@ -348,7 +265,7 @@ def _ur_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
                 out[row, 3], out[row, 4], out[row, 5] = theta234 - theta2 - theta3, theta5, theta6
 
 
-UrArm._kernel = staticmethod(_ur_kernel)
+UrArm._kernel = staticmethod(ur_kernel)
 
 
 @dataclass(frozen=True, eq=False)

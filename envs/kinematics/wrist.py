@@ -21,7 +21,6 @@ branches then describe the same configuration and both are returned as valid.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 
 import numpy as np
 
@@ -38,88 +37,32 @@ def wrist_rotation(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
 
 
 def solve_yxy_wrist(r_wrist: np.ndarray) -> np.ndarray:
-    """All solutions of Ry(a)Rx(b)Ry(c) = ``r_wrist`` (…, 3, 3).
-
-    Returns (…, 2, 3): row 0 has b ≥ 0 ("wrist +"), row 1 b ≤ 0 ("wrist −"); angles in
-    [−π, π] (the arm wraps them to [−π, π)). Always finite for a finite rotation.
-    """
-    return np.stack(wrist_branches(*_wrist_entries(r_wrist)), axis=-1)
+    """All solutions of Ry(a)Rx(b)Ry(c) = ``r_wrist`` (3, 3), as a (2, 3) array: row 0 has
+    b ≥ 0 ("wrist +"), row 1 b ≤ 0 ("wrist −"); angles in [−π, π] (the arm wraps them to
+    [−π, π)). Always finite for a finite rotation. ``wrist_branches`` on its entries."""
+    r = np.asarray(r_wrist, dtype=np.float64)
+    if r.shape != (3, 3):
+        raise ValueError(f"r_wrist must have shape (3, 3), got {r.shape}")
+    plus, minus = wrist_branches(
+        float(r[0, 0]), float(r[0, 1]), float(r[0, 2]), float(r[1, 1]), float(r[2, 0]),
+        float(r[2, 1]), float(r[2, 2]),
+    )
+    return np.array([plus, minus])
 
 
 def wrist_branches(
-    r00: np.ndarray, r01: np.ndarray, r02: np.ndarray, r11: np.ndarray, r20: np.ndarray,
-    r21: np.ndarray, r22: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``solve_yxy_wrist`` from the seven entries of R_w it reads, each a (…,) array.
-
-    Returns the columns (a, b, c), each (…, 2) with the + branch first. Entries in and
-    columns out let callers keep every array contiguous: on big batches strided slices of
-    (…, 3, 3) stacks cost more than the arithmetic.
-    """
-    sin_b = np.sqrt(r01 * r01 + r21 * r21)  # entries are bounded by 1: no need for hypot
-    b = np.arctan2(sin_b, r11)
-    a = np.arctan2(r01, r21)
-    singular = sin_b < WRIST_SINGULAR_TOL
-    shift: float | np.ndarray = np.pi
-    # (cos a, sin a) is column 1's (R21, R01) normalised: no trigonometry needed. Singular
-    # rows (sin b ≈ 0) are replaced below, each row on its own, so a pose's branches do not
-    # depend on the rest of its batch.
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ca, sa = r21 / sin_b, r01 / sin_b
-    if np.any(singular):
-        # cos b = ±1 here: a ± c = atan2(±R02, R00); split the free angle evenly.
-        folded = r11 < 0.0
-        a = np.where(singular, 0.5 * np.arctan2(np.where(folded, -r02, r02), r00), a)
-        b = np.where(singular, np.where(folded, np.pi, 0.0), b)
-        ca, sa = np.where(singular, np.cos(a), ca), np.where(singular, np.sin(a), sa)
-        shift = np.where(singular, 0.0, np.pi)  # the flipped branch is the same configuration
-    c = np.arctan2(ca * r02 - sa * r22, ca * r00 - sa * r20)
-    # The flipped branch is (a + π, −b, c + π), kept inside [−π, π].
-    flipped_a = np.where(a > 0.0, a - shift, a + shift)
-    flipped_c = np.where(c > 0.0, c - shift, c + shift)
-    return (
-        np.stack([a, flipped_a], axis=-1),
-        np.stack([b, -b], axis=-1),
-        np.stack([c, flipped_c], axis=-1),
-    )
-
-
-def solve_with_wrist(positioning: np.ndarray, r_wrist: np.ndarray) -> list[np.ndarray]:
-    """Complete positioning solutions with both wrist branches.
-
-    ``positioning`` (…, P, 3) joint values of the positioning part and ``r_wrist``
-    (…, P, 3, 3) the rotation the wrist must realise for each, R_posᵀ·R. Returns the six
-    joint columns, each (…, 2P): for each positioning solution, wrist + then wrist −.
-    """
-    return with_positioning(
-        [positioning[..., j] for j in range(3)], wrist_branches(*_wrist_entries(r_wrist))
-    )
-
-
-def with_positioning(
-    positioning: Sequence[np.ndarray], wrist: Sequence[np.ndarray]
-) -> list[np.ndarray]:
-    """Columns of (…, P) positioning joints and (…, P, 2) wrist joints -> six (…, 2P) columns."""
-    columns = [np.repeat(column, 2, axis=-1) for column in positioning]
-    columns += [column.reshape((*column.shape[:-2], -1)) for column in wrist]
-    return columns
-
-
-def _wrist_entries(r_wrist: np.ndarray) -> tuple[np.ndarray, ...]:
-    return tuple(
-        r_wrist[..., i, j] for i, j in ((0, 0), (0, 1), (0, 2), (1, 1), (2, 0), (2, 1), (2, 2))
-    )
-
-
-def wrist_branches_scalar(
     r00: float, r01: float, r02: float, r11: float, r20: float, r21: float, r22: float,
 ) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
-    """``wrist_branches`` for one rotation given as floats: ((a, b, c), (a', b', c')).
+    """Both wrist branches ((a, b, c), (a', b', c')) from the seven entries of R_w they read,
+    as floats: the one statement of the wrist's closed form, called by the IK kernels
+    (``envs/kinematics/compiled.py``; plain Python on floats and ``math``).
 
-    The same formulas, on floats with ``math``: the kernels of the compiled single-pose
-    path call it (``envs/kinematics/compiled.py``). Tests hold the two to the same results.
+    (cos a, sin a) is column 1's (R21, R01) normalised by sin b: no trigonometry needed.
+    Below ``WRIST_SINGULAR_TOL`` (cos b = ±1) only a ± c = atan2(±R02, R00) is defined: the
+    free angle is split evenly and both rows are the same configuration. Otherwise the
+    flipped branch is (a + π, −b, c + π), kept inside [−π, π].
     """
-    sin_b = math.sqrt(r01 * r01 + r21 * r21)
+    sin_b = math.sqrt(r01 * r01 + r21 * r21)  # entries are bounded by 1: no need for hypot
     if sin_b < WRIST_SINGULAR_TOL:
         folded = r11 < 0.0
         a = 0.5 * math.atan2(-r02 if folded else r02, r00)
@@ -141,8 +84,8 @@ def put_wrist_rows(
     r02: float, r11: float, r20: float, r21: float, r22: float,
 ) -> None:
     """Write the rows (q1, q2, q3, wrist +) and (q1, q2, q3, wrist −) of a six-joint arm
-    into ``out[row]`` and ``out[row + 1]`` (a kernel of the single-pose path)."""
-    plus, minus = wrist_branches_scalar(r00, r01, r02, r11, r20, r21, r22)
+    into ``out[row]`` and ``out[row + 1]`` (for the IK kernels)."""
+    plus, minus = wrist_branches(r00, r01, r02, r11, r20, r21, r22)
     out[row, 0], out[row, 1], out[row, 2] = q1, q2, q3
     out[row, 3], out[row, 4], out[row, 5] = plus[0], plus[1], plus[2]
     out[row + 1, 0], out[row + 1, 1], out[row + 1, 2] = q1, q2, q3

@@ -58,14 +58,19 @@ def test_the_readme_shows_the_published_aggregate():
 @pytest.mark.parametrize(("env_id", "algo"), published_rows())
 def test_a_published_model_replays_its_first_episodes(env_id, algo, monkeypatch):
     # A snapshot (the stored returns came from this code): a change in what the env, the
-    # checker or the model loader computes shows up here, bit for bit.
+    # checker or the model loader computes shows up here. To rounding, not bit for bit:
+    # the returns were stored when batches went through numpy IK solvers, whose arctan2
+    # and arccos differ from the C library's (what the one compiled IK calls since) in the
+    # last bit; replayed returns moved by at most 9.3e-14. A changed decision moves a
+    # return by a whole move's price.
     monkeypatch.chdir(MODELS.parent)
     trial = _trial(env_id, algo)
     env = gym.make(env_id, **trial["env_kwargs"])
     policy = SB3Policy.load(trial["model"], env)
     for e in range(REPLAYED):
         episode = run_episode(policy, env, trial["task_seed"] + e)
-        assert episode.reward == trial["policy"]["returns"][e], e
+        assert episode.reward == pytest.approx(trial["policy"]["returns"][e], rel=0,
+                                               abs=1e-9), e
 
 
 @pytest.mark.parametrize(("env_id", "algo"), published_rows())

@@ -164,7 +164,7 @@ def test_every_closed_form_branch_occurs_within_full_circle_limits(name):
 def assert_finite_and_exact(arm, pose):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        solutions, valid = arm.ik_batched(pose[None])
+        solutions, valid = arm.ik(pose[None])
     solutions, valid = solutions[0], valid[0]
     assert valid.any()
     assert np.all(np.isfinite(solutions[valid])) and np.all(np.isnan(solutions[~valid]))
@@ -269,7 +269,7 @@ def test_lateral_offset_b_on_its_cylinder():
     pose = arm.fk(q)
     centre = pose[:3, 3] - arm.c4 * pose[:3, 2]
     pose[:2, 3] -= 0.5 * centre[:2]
-    assert not arm.ik(pose)[1].any() and not arm.ik_batched(pose)[1].any()
+    assert not arm.ik(pose)[1].any() and not arm.ik(pose[None])[1].any()
 
 
 # ------------------------------------------------------------------------- parameters

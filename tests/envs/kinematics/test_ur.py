@@ -113,7 +113,7 @@ def test_every_closed_form_branch_occurs():
 def assert_finite_and_exact(arm, pose):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        solutions, valid = arm.ik_batched(pose[None])
+        solutions, valid = arm.ik(pose[None])
     solutions, valid = solutions[0], valid[0]
     assert valid.any()
     assert np.all(np.isfinite(solutions[valid])) and np.all(np.isnan(solutions[~valid]))
@@ -179,7 +179,7 @@ def test_shoulder_singularity_is_finite_and_exact(name):
     pose = arm.fk(np.array([0.3, -np.pi / 2, 0.0, np.pi / 2, 0.7, 0.2]))
     p5 = pose[:3, 3] - arm.d6 * pose[:3, 2]
     pose[:2, 3] -= 1e-6 * p5[:2] / np.hypot(*p5[:2])
-    assert not arm.ik(pose)[1].any() and not arm.ik_batched(pose)[1].any()
+    assert not arm.ik(pose)[1].any() and not arm.ik(pose[None])[1].any()
 
 
 @pytest.mark.parametrize("name", UR_ARMS)

@@ -48,12 +48,3 @@ def test_folded_wrist_splits_the_free_angle_evenly(theta):
     a, b, c = solutions[0]
     assert a == pytest.approx(theta / 2, abs=1e-12) and c == pytest.approx(-theta / 2, abs=1e-12)
     assert np.abs(wrist_rotation(a, b, c) - rotation).max() < 1e-12
-
-
-def test_batched_solve_matches_single():
-    rng = np.random.default_rng(4)
-    abc = rng.uniform(-np.pi, np.pi, (4, 5, 3))
-    rotation = wrist_rotation(abc[..., 0], abc[..., 1], abc[..., 2])
-    batched = solve_yxy_wrist(rotation)
-    assert batched.shape == (4, 5, 2, 3)
-    np.testing.assert_array_equal(batched[2, 3], solve_yxy_wrist(rotation[2, 3]))
