@@ -182,3 +182,18 @@ def test_lazy_oracle_checks_few_edges_and_replans_off_its_path():
     tables = ladder_q_tables(full, base.valid[1:])
     assert int(action) == int(np.argmax(np.where(base.action_masks(), tables[0][other],
                                                  -np.inf)))
+
+
+def test_values_equal_to_rounding_tie_towards_the_lower_branch():
+    from agents.dp import best_branch
+
+    mask = np.ones(4, dtype=bool)
+    value = -0.6575120052142036
+    # The milling tool change's window (examples/README.md): four first branches whose
+    # values differ in the last bits, differently with every IK rounding.
+    for noise in ([0.0, -4e-16, 6e-16, 2e-16], [6e-16, 0.0, -4e-16, 2e-16]):
+        assert best_branch(value + np.array(noise), mask) == 0
+    assert best_branch(np.array([-1.0, -1.0 + 1e-6, -1.0, -1.0]), mask) == 1  # a real gap
+    assert best_branch(np.array([-1.0, -0.5, -1.0, -2.0]), np.array([1, 0, 1, 1], bool)) == 0
+    assert best_branch(np.array([-5.0, -np.inf, -3.0, -3.0]), np.array([1, 1, 0, 1], bool)) == 3
+    assert best_branch(np.full(4, -np.inf), mask) == 0  # nothing finite: as argmax
