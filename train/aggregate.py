@@ -101,14 +101,23 @@ def _curves(root: Path, env_id: str, algo: str, seeds: list[int]) -> dict[str, A
             "low": [e[1] for e in estimates], "high": [e[2] for e in estimates]}
 
 
+#: Scores closer than this are the same outcome (a tie): the same moves priced by code that
+#: rounds differently (a policy evaluated before an IK change, its rival after) differ
+#: in the last bits, ~1e-15; different moves differ by far more.
+SCORE_TIE = 1e-9
+
+
 def probability_of_improvement(scores_x: np.ndarray, scores_y: np.ndarray) -> float:
     """rliable's ``metrics.probability_of_improvement`` (P(X_m > Y_m), ties counting
     half, averaged over tasks m), vectorised: rliable calls scipy's Mann-Whitney U once
     per task, about 1 ms each, which inside a 2,000-sample bootstrap over 200 tasks took
     minutes per policy pair. Mann-Whitney's U is exactly the count of pairs x > y plus
-    half the ties, so the values are the same (tested equal)."""
-    greater = (scores_x[:, None, :] > scores_y[None, :, :]).sum(axis=(0, 1))
-    ties = (scores_x[:, None, :] == scores_y[None, :, :]).sum(axis=(0, 1))
+    half the ties, so the values are the same (tested equal), but for one deliberate
+    difference: scores within ``SCORE_TIE`` tie, where rliable's exact comparison would
+    let rounding decide."""
+    difference = scores_x[:, None, :] - scores_y[None, :, :]
+    greater = (difference > SCORE_TIE).sum(axis=(0, 1))
+    ties = (np.abs(difference) <= SCORE_TIE).sum(axis=(0, 1))
     per_task = (greater + 0.5 * ties) / (scores_x.shape[0] * scores_y.shape[0])
     return float(np.mean(per_task))
 

@@ -174,6 +174,11 @@ def test_probability_of_improvement_equals_rliables():
         assert probability_of_improvement(x, y) == metrics.probability_of_improvement(x, y)
         z = rng.normal(size=(runs_x, 40))
         assert probability_of_improvement(z, y) == metrics.probability_of_improvement(z, y)
+        # Equal to rounding is a tie here; rliable lets the last bit decide.
+        one = x[:1]
+        nudged = one + np.where(rng.random(one.shape) < 0.5, 1e-15, -1e-15)
+        assert probability_of_improvement(one, nudged) == 0.5
+        assert probability_of_improvement(one + 1e-6, one) == 1.0
 
 
 def test_intervals_are_reproducible_whatever_numpys_global_state():
