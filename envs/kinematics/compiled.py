@@ -12,13 +12,13 @@ branches never depend on the batch it came in.
 numba compiles the driver with every kernel once per machine (about 7 s) into an on-disk
 cache under a directory named by a hash of this package's sources (numba alone would not
 notice an edited kernel: it stamps the cache with the driver's file only); a process then
-loads it in ~0.3 s on its first IK call. Without numba the very same functions run
-interpreted: the same answers (tested bit for bit against the compiled ones), ~1,000×
-slower. This package imports numba only here, lazily, so it stays importable with numpy
-alone.
+loads it in ~0.4 s (numba's import included) on its first IK call. Without numba the very
+same functions run interpreted: the same answers (tested bit for bit against the compiled
+ones), ~1,000× slower. This package imports numba only here, lazily, so it stays
+importable with numpy alone.
 
 Why scalar kernels and not the batched numpy solvers of earlier versions: on one pose numpy
-pays ~1 µs per ufunc call (85–240 µs a pose, against 2–10 µs compiled), the kernels are
+pays ~1 µs per ufunc call (80–320 µs a pose, against 3–9 µs compiled), the kernels are
 as fast on batches (docs/kinematics_opw_ur.md), and two copies of every closed form —
 numpy and scalar — only agreed to an ulp (numpy's AVX-512 arctan2/arccos differ from the C
 library's on a few percent of inputs). Compiling the numpy solvers with numba was measured
