@@ -85,7 +85,7 @@ Solver = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
 def pose_status(m: np.ndarray, check_rotation: bool) -> int:
     """0 if the (4, 4) array ``m`` is a valid target, else a ``STATUS_MESSAGES`` code: finite,
     bottom row (0, 0, 0, 1) and, for ``check_rotation``, a rotation block orthonormal to
-    ``ORTHONORMAL_TOL`` (the tolerance of ``rotations.validate_rotation``) and proper."""
+    ``ORTHONORMAL_TOL`` and proper (det > 0)."""
     for i in range(4):
         for j in range(4):
             if not math.isfinite(m[i, j]):

@@ -90,7 +90,7 @@ def test_the_compiled_driver_is_the_interpreted_one_bit_for_bit(name):
 @pytest.mark.parametrize("name", ARM_NAMES)
 def test_a_poses_branches_do_not_depend_on_the_rest_of_its_batch(name):
     # The batched numpy solvers of earlier versions once moved a pose's branches by an ulp
-    # with the company it was solved in; one driver, pose by pose, cannot.
+    # with the company it was solved in; one driver, pose by pose, must not.
     arm = make_arm(name)
     poses = target_poses(arm)
     batched, batched_ok = arm.ik(poses)
