@@ -227,3 +227,15 @@ def test_a_new_process_loads_the_compiled_driver_from_disk():
         assert result.returncode == 0, result.stderr[-2000:]
         reports.append(json.loads(result.stdout.strip().splitlines()[-1]))
     assert reports[1]["hits"] == 1 and reports[1]["misses"] == 0, reports
+
+
+def test_the_cache_goes_where_numba_cache_dir_says(tmp_path, monkeypatch):
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    package = Path(compiled_module.__file__).parent
+    directory = compiled_module.cache_directory()
+    assert directory == tmp_path / f"numba-{source_digest(package)}" and directory.is_dir()
+    # An unwritable root is passed over for the next one.
+    blocked = tmp_path / "file"
+    blocked.write_text("")
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(blocked))
+    assert compiled_module.cache_directory().parent != blocked
