@@ -230,7 +230,7 @@ class Arm(ABC):
                 and pose.flags.c_contiguous):
             # One pose, the common case of a controller loop: no copy, no conversion.
             q, ok, reach = self._solver(pose.reshape(1, 4, 4))
-            return q[0], ok[0], reach[0]
+            return q[0], ok[0], reach.reshape(())
         # The driver checks every pose (finite, rigid) and names the first bad one.
         pose = as_float_array(pose, "pose", check_finite=False)
         if pose.ndim < 2 or pose.shape[-2:] != (4, 4):

@@ -167,6 +167,8 @@ def test_other_dtypes_and_layouts_give_the_same_answer():
         np.testing.assert_array_equal(np.reshape(q, reference_q.shape), reference_q)
     integer = np.eye(4, dtype=int)
     np.testing.assert_array_equal(arm.ik(integer)[1], arm.ik(np.eye(4))[1])
+    assert arm.reaches(pose).shape == arm.reaches(pose.tolist()).shape == ()
+    assert arm.reaches(pose[None]).shape == (1,)
 
 
 def test_without_numba_the_same_functions_run_interpreted(monkeypatch):
