@@ -365,22 +365,27 @@ def compiled_solve_poses() -> Callable:
         numba.config.CACHE_DIR = saved
 
 
+def driver_arguments(arm: Arm) -> tuple[Any, ...]:
+    """``solve_poses``' arguments after the poses for ``arm``: (params, kc, dof, k,
+    check_rotation, modes, lower, upper, slots)."""
+    modes = np.array([mode for mode, _, _, _ in arm._joint_modes], dtype=np.int64)
+    lower = np.array([low for _, low, _, _ in arm._joint_modes], dtype=np.float64)
+    upper = np.array([high for _, _, high, _ in arm._joint_modes], dtype=np.float64)
+    slots = np.array([count for _, _, _, count in arm._joint_modes], dtype=np.int64)
+    params = np.ascontiguousarray(arm._kernel_parameters(), dtype=np.float64)
+    return (params, arm.n_closed_form, arm.dof, arm.n_branches, arm.target == "pose", modes,
+            lower, upper, slots)
+
+
 def solver(arm: Arm) -> Solver:
     """``poses (N, 4, 4) float64 C-contiguous -> (Q, ok, reach)`` for ``arm``; raises
     ``ValueError`` (naming the pose for N > 1) for a non-finite or non-rigid pose."""
     kernel = kernel_number(type(arm))
     solve = compiled_solve_poses()
-    params = np.ascontiguousarray(arm._kernel_parameters(), dtype=np.float64)
-    modes = np.array([mode for mode, _, _, _ in arm._joint_modes], dtype=np.int64)
-    lower = np.array([low for _, low, _, _ in arm._joint_modes], dtype=np.float64)
-    upper = np.array([high for _, _, high, _ in arm._joint_modes], dtype=np.float64)
-    slots = np.array([count for _, _, _, count in arm._joint_modes], dtype=np.int64)
-    kc, dof, k = arm.n_closed_form, arm.dof, arm.n_branches
-    check_rotation = arm.target == "pose"
+    arguments = driver_arguments(arm)
 
     def solve_for_arm(poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        q, ok, reach, bad, status = solve(kernel, poses, params, kc, dof, k, check_rotation,
-                                          modes, lower, upper, slots)
+        q, ok, reach, bad, status = solve(kernel, poses, *arguments)
         if status:
             where = f" (pose {bad} of the batch)" if len(poses) > 1 else ""
             raise ValueError(STATUS_MESSAGES[status] + where)

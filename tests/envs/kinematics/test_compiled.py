@@ -23,11 +23,11 @@ import pytest
 
 from envs.kinematics import ARM_NAMES, make_arm
 from envs.kinematics import compiled as compiled_module
-from envs.kinematics.arm import Arm
 from envs.kinematics.compiled import (
     KERNELS,
     closed_form_rows,
     compiled_solve_poses,
+    driver_arguments,
     kernel_number,
     solve_poses,
     source_digest,
@@ -57,16 +57,6 @@ def target_poses(arm):
     far = pose[:5].copy()
     far[:, :3, 3] += 50.0  # unreachable
     return np.concatenate([pose, far])
-
-
-def driver_arguments(arm: Arm) -> tuple:
-    """``solve_poses``' arguments after the poses, as ``compiled.solver`` builds them."""
-    modes = np.array([mode for mode, _, _, _ in arm._joint_modes], dtype=np.int64)
-    lower = np.array([low for _, low, _, _ in arm._joint_modes])
-    upper = np.array([high for _, _, high, _ in arm._joint_modes])
-    slots = np.array([count for _, _, _, count in arm._joint_modes], dtype=np.int64)
-    return (np.ascontiguousarray(arm._kernel_parameters(), dtype=np.float64), arm.n_closed_form,
-            arm.dof, arm.n_branches, arm.target == "pose", modes, lower, upper, slots)
 
 
 @pytest.mark.parametrize("name", ARM_NAMES)
