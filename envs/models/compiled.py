@@ -132,39 +132,77 @@ class CompiledScene:
 
 
 # ------------------------------------------------------------------------------ geometry
+#: MuJoCo geom type codes (numba reads them as constants).
+_GEOM_PLANE, _GEOM_SPHERE = int(mujoco.mjtGeom.mjGEOM_PLANE), int(mujoco.mjtGeom.mjGEOM_SPHERE)
+_GEOM_CAPSULE, _GEOM_BOX = int(mujoco.mjtGeom.mjGEOM_CAPSULE), int(mujoco.mjtGeom.mjGEOM_BOX)
+_GEOM_CYLINDER = int(mujoco.mjtGeom.mjGEOM_CYLINDER)
+_GEOM_ELLIPSOID = int(mujoco.mjtGeom.mjGEOM_ELLIPSOID)
+_GEOM_MESH = int(mujoco.mjtGeom.mjGEOM_MESH)
+
+
 def container(model: mujoco.MjModel, geom: int) -> tuple[int, np.ndarray, np.ndarray, float]:
     """The container of ``geom``: (type, size (3,), centre offset in the geom frame (3,),
     bounding radius about that centre). The container holds every point of the geom as
     MuJoCo collides it (a mesh as its convex hull)."""
-    kind = int(model.geom_type[geom])
-    size = np.array(model.geom_size[geom], dtype=np.float64)
-    offset = np.zeros(3)
-    geom_types = mujoco.mjtGeom
-    if kind == geom_types.mjGEOM_SPHERE:
-        return SPHERE, size, offset, float(size[0])
-    if kind == geom_types.mjGEOM_CAPSULE:
-        return CAPSULE, size, offset, float(size[0] + size[1])
-    if kind == geom_types.mjGEOM_BOX:
-        return BOX, size, offset, float(np.linalg.norm(size))
-    if kind == geom_types.mjGEOM_CYLINDER:
-        return CYLINDER, size, offset, float(np.hypot(size[0], size[1]))
-    if kind == geom_types.mjGEOM_ELLIPSOID:
-        return BOX, size, offset, float(size.max())
-    if kind == geom_types.mjGEOM_MESH:
+    kind, size, offset, radius = _container(int(model.geom_type[geom]), model.geom_size[geom],
+                                            model.geom_aabb[geom])
+    return int(kind), np.array(size), np.array(offset), float(radius)
+
+
+@njit(cache=True)
+def _container(geom_type, size, aabb):
+    """:func:`container` from the geom's MuJoCo type, ``geom_size`` and ``geom_aabb`` rows:
+    (type, size, offset, radius) with size and offset as 3-tuples."""
+    s0, s1, s2 = size[0], size[1], size[2]
+    zero = (0.0, 0.0, 0.0)
+    if geom_type == _GEOM_SPHERE:
+        return SPHERE, (s0, s1, s2), zero, s0
+    if geom_type == _GEOM_CAPSULE:
+        return CAPSULE, (s0, s1, s2), zero, s0 + s1
+    if geom_type == _GEOM_BOX:
+        return BOX, (s0, s1, s2), zero, math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+    if geom_type == _GEOM_CYLINDER:
+        return CYLINDER, (s0, s1, s2), zero, math.hypot(s0, s1)
+    if geom_type == _GEOM_ELLIPSOID:
+        return BOX, (s0, s1, s2), zero, max(s0, max(s1, s2))
+    if geom_type == _GEOM_MESH:
         # geom_aabb: the (centre, half-size) box of the mesh's vertices in the geom frame,
         # so it holds their convex hull, which is what MuJoCo collides.
-        aabb = np.array(model.geom_aabb[geom], dtype=np.float64)
-        half = aabb[3:] * (1.0 + 1e-12) + 1e-12
-        return BOX, half, aabb[:3].copy(), float(np.linalg.norm(half))
-    if kind == geom_types.mjGEOM_PLANE:
-        return PLANE, size, offset, math.inf
-    return UNBOUNDED, size, offset, math.inf
+        h0 = aabb[3] * (1.0 + 1e-12) + 1e-12
+        h1 = aabb[4] * (1.0 + 1e-12) + 1e-12
+        h2 = aabb[5] * (1.0 + 1e-12) + 1e-12
+        return BOX, (h0, h1, h2), (aabb[0], aabb[1], aabb[2]), math.sqrt(h0 * h0 + h1 * h1
+                                                                        + h2 * h2)
+    if geom_type == _GEOM_PLANE:
+        return PLANE, (s0, s1, s2), zero, math.inf
+    return UNBOUNDED, (s0, s1, s2), zero, math.inf
 
 
 def _quat_to_mat(quat) -> np.ndarray:
-    mat = np.zeros(9)
-    mujoco.mju_quat2Mat(mat, np.asarray(quat, dtype=np.float64))
-    return mat.reshape(3, 3)
+    mat = np.empty((3, 3))
+    _quat_matrix(np.asarray(quat, dtype=np.float64), mat)
+    return mat
+
+
+@njit(cache=True)
+def _quat_matrix(q, out):
+    """``out`` (3, 3) = the rotation of unit quaternion ``q`` (w, x, y, z), as
+    ``mju_quat2Mat`` computes it."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    if w == 1.0 and x == 0.0 and y == 0.0 and z == 0.0:
+        for i in range(3):
+            for j in range(3):
+                out[i, j] = 1.0 if i == j else 0.0
+        return
+    ww, wx, wy, wz = w * w, w * x, w * y, w * z
+    xx, xy, xz, yy, yz, zz = x * x, x * y, x * z, y * y, y * z, z * z
+    # Summed as MuJoCo's build does (found by comparison), so its frames come out the same.
+    out[0, 0] = (ww - yy) + (xx - zz)
+    out[1, 1] = (ww + yy) - (xx + zz)
+    out[2, 2] = (ww - yy) - (xx - zz)
+    out[0, 1], out[0, 2] = 2.0 * (xy - wz), 2.0 * (xz + wy)
+    out[1, 0], out[1, 2] = 2.0 * (xy + wz), 2.0 * (yz - wx)
+    out[2, 0], out[2, 1] = 2.0 * (xz - wy), 2.0 * (yz + wx)
 
 
 def _ancestors(model: mujoco.MjModel, body: int) -> list[int]:
@@ -388,33 +426,78 @@ def refresh_static(scene: CompiledScene, model: mujoco.MjModel,
     and what the pairs keep of them. ``geoms``: the geom ids that changed (default every
     static one). The tree, the candidate pairs and every moving geom are unchanged, so
     nothing else is recomputed."""
-    static = np.flatnonzero(scene.slot_static)
-    if geoms is not None:
-        static = static[np.isin(scene.slot_geom[static], geoms)]
-    for s in static:
-        g = int(scene.slot_geom[s])
-        kind, size, offset, radius = container(model, g)
-        if kind != scene.slot_type[s]:
-            raise ValueError(f"geom {model.geom(g).name!r} changed its kind")
+    every = geoms is None
+    geoms = np.zeros(0, dtype=np.int64) if every else np.asarray(geoms, dtype=np.int64)
+    changed = _refresh_static(
+        every, geoms, scene.slot_geom, scene.slot_body, scene.slot_static, scene.slot_type,
+        scene.slot_size, scene.slot_radius, scene.slot_pos, scene.slot_rot, scene.body_xpos,
+        scene.body_xmat, scene.pair_a, scene.pair_b, scene.pair_margin, scene.pair_kind_own,
+        scene.slot_extent, scene.pair_fixed, scene.pair_reach, scene.pair_kind,
+        model.geom_type, model.geom_size, model.geom_aabb, model.geom_quat, model.geom_pos)
+    if changed >= 0:
+        raise ValueError(f"geom {model.geom(int(scene.slot_geom[changed])).name!r} changed its kind")
+
+
+@njit(cache=True)
+def _refresh_static(every, geoms, slot_geom, slot_body, slot_static, slot_type, slot_size,
+                    slot_radius, slot_pos, slot_rot, body_xpos, body_xmat, pair_a, pair_b,
+                    pair_margin, pair_kind_own, slot_extent, pair_fixed, pair_reach, pair_kind,
+                    geom_type, geom_size, geom_aabb, geom_quat, geom_pos):
+    """:func:`refresh_static` on the arrays: returns −1, or the slot whose geom changed
+    its container kind (left half-refreshed: the caller raises)."""
+    refreshed = np.zeros(len(slot_geom), dtype=np.bool_)
+    own = np.empty((3, 3))
+    for s in range(len(slot_geom)):
+        if not slot_static[s]:
+            continue
+        g = slot_geom[s]
+        if not every:
+            listed = False
+            for i in range(len(geoms)):
+                if geoms[i] == g:
+                    listed = True
+            if not listed:
+                continue
+        kind, size, offset, radius = _container(geom_type[g], geom_size[g], geom_aabb[g])
+        if kind != slot_type[s]:
+            return s
+        refreshed[s] = True
         # A static geom's frame: its (static) body's, known since construction, times its own.
-        body = int(scene.slot_body[s])
-        frame = scene.body_xmat[body]
-        rot = frame @ _quat_to_mat(model.geom_quat[g])
-        scene.slot_size[s], scene.slot_radius[s] = size, radius
-        scene.slot_rot[s] = rot
-        scene.slot_pos[s] = scene.body_xpos[body] + frame @ model.geom_pos[g] + rot @ offset
-    pairs = np.flatnonzero(np.isin(scene.pair_b, static))
-    b = scene.pair_b[pairs]
-    scene.pair_fixed[pairs, :3] = scene.slot_pos[b]
-    scene.pair_fixed[pairs, 3:] = scene.slot_rot[b][:, :, 2]
-    partner = np.where(scene.slot_type[b] == PLANE, 0.0, scene.slot_radius[b])
-    scene.pair_reach[pairs] = scene.slot_radius[scene.pair_a[pairs]] + partner + scene.pair_margin[
-        pairs]
-    # A static geom beyond everything a's points can ever reach (a parked obstacle slot)
-    # cannot come within the margin: its pairs are skipped (kind 3) until it moves back.
-    gap = np.linalg.norm(scene.slot_pos[b], axis=1) - partner - scene.pair_margin[pairs]
-    far = (scene.pair_kind_own[pairs] == 0) & (gap > scene.slot_extent[scene.pair_a[pairs]])
-    scene.pair_kind[pairs] = np.where(far, OUT_OF_REACH, scene.pair_kind_own[pairs])
+        body = slot_body[s]
+        _quat_matrix(geom_quat[g], own)
+        for i in range(3):
+            slot_size[s, i] = size[i]
+            for j in range(3):
+                slot_rot[s, i, j] = (body_xmat[body, i, 0] * own[0, j]
+                                     + body_xmat[body, i, 1] * own[1, j]
+                                     + body_xmat[body, i, 2] * own[2, j])
+        slot_radius[s] = radius
+        for i in range(3):
+            slot_pos[s, i] = (body_xpos[body, i]
+                              + (body_xmat[body, i, 0] * geom_pos[g, 0]
+                                 + body_xmat[body, i, 1] * geom_pos[g, 1]
+                                 + body_xmat[body, i, 2] * geom_pos[g, 2])
+                              + (slot_rot[s, i, 0] * offset[0] + slot_rot[s, i, 1] * offset[1]
+                                 + slot_rot[s, i, 2] * offset[2]))
+    for k in range(len(pair_b)):
+        b = pair_b[k]
+        if not refreshed[b]:
+            continue
+        x, y, z = slot_pos[b, 0], slot_pos[b, 1], slot_pos[b, 2]
+        pair_fixed[k, 0], pair_fixed[k, 1], pair_fixed[k, 2] = x, y, z
+        pair_fixed[k, 3], pair_fixed[k, 4], pair_fixed[k, 5] = (slot_rot[b, 0, 2],
+                                                                slot_rot[b, 1, 2],
+                                                                slot_rot[b, 2, 2])
+        # Bounding radii plus margin: a plane adds no radius.
+        partner = 0.0 if slot_type[b] == PLANE else slot_radius[b]
+        pair_reach[k] = slot_radius[pair_a[k]] + partner + pair_margin[k]
+        # A static geom beyond everything a's points can ever reach (a parked obstacle
+        # slot) cannot come within the margin: its pairs are skipped (kind 3) until it
+        # moves back.
+        gap = math.sqrt(x * x + y * y + z * z) - partner - pair_margin[k]
+        far = pair_kind_own[k] == 0 and gap > slot_extent[pair_a[k]]
+        pair_kind[k] = OUT_OF_REACH if far else pair_kind_own[k]
+    return -1
 
 
 # -------------------------------------------------------------------- distance kernels

@@ -176,6 +176,8 @@ def draw_clutter(arm: Arm, seed: int, base: list[tuple[np.ndarray, float]],
     rng = np.random.default_rng(seed)
     lower, upper = arm.joint_limits[:, 0], arm.joint_limits[:, 1]
     centres = arm.fk(rng.uniform(lower, upper, size=(n_obstacles, arm.dof)))[:, :3, 3]
+    discs = np.array([disc for disc, _ in base], dtype=np.float64).reshape(-1, 2)
+    radii = np.array([radius for _, radius in base], dtype=np.float64)
     obstacles = []
     for k, centre in enumerate(centres):
         half = rng.uniform(0.05, 0.2, size=2)
@@ -184,7 +186,7 @@ def draw_clutter(arm: Arm, seed: int, base: list[tuple[np.ndarray, float]],
         offset = rng.normal(scale=0.25, size=2)
         xy = centre[:2] + offset
         footprint = float(np.hypot(*half))
-        if any(np.hypot(*(xy - disc)) < footprint + radius for disc, radius in base):
+        if (np.hypot(xy[0] - discs[:, 0], xy[1] - discs[:, 1]) < footprint + radii).any():
             continue
         pos = (float(xy[0]), float(xy[1]), top / 2)
         if rng.random() < 0.5:
@@ -296,17 +298,22 @@ class ClutterSlots:
             model.geom_aabb[self.geoms] = np.concatenate([np.zeros_like(aabb), aabb], axis=1)
 
 
+#: MuJoCo's geom type codes as plain ints (comparing an array with the enum objects
+#: themselves is ~20 times slower).
+_GEOM_BOX, _GEOM_CYLINDER = int(mujoco.mjtGeom.mjGEOM_BOX), int(mujoco.mjtGeom.mjGEOM_CYLINDER)
+_GEOM_CAPSULE = int(mujoco.mjtGeom.mjGEOM_CAPSULE)
+
+
 def _primitive_sizes(types: np.ndarray, half: np.ndarray):
     """MuJoCo ``geom_size``, ``geom_rbound`` and ``geom_aabb`` half-extents of primitive
     geoms spanning ``half`` (x, y, z) (a cylinder's: radius, radius, half-height): a box by
     its half-sizes, a cylinder by radius and half-height, a capsule (the collision twin of
     a cylinder) by radius and the half-length of its straight part."""
-    kinds = mujoco.mjtGeom
     radius, height = half[:, 0], half[:, 2]
     size = np.zeros_like(half)
-    box = types == kinds.mjGEOM_BOX
-    cylinder = types == kinds.mjGEOM_CYLINDER
-    capsule = types == kinds.mjGEOM_CAPSULE
+    box = types == _GEOM_BOX
+    cylinder = types == _GEOM_CYLINDER
+    capsule = types == _GEOM_CAPSULE
     if not (box | cylinder | capsule).all():
         raise ValueError("clutter slot geoms must be boxes, cylinders or capsules")
     if np.any(capsule & (height < radius)):

@@ -142,3 +142,32 @@ def test_parked_slots_are_skipped_and_come_back_when_laid():
     assert skipped[of_parked].all() and of_parked.any()
     assert not skipped[in_slots & ~of_parked].any()  # the laid ones stay near the arm
     assert not skipped[~in_slots].any()  # the fixed scene is never skipped
+
+
+@pytest.mark.parametrize("arm_name", ARMS)
+def test_a_refreshed_filter_equals_one_compiled_for_the_laid_scene(arm_name):
+    # refresh_static re-reads only the obstacle slots; a scene compiled afresh from the
+    # laid model reads everything (static frames from MuJoCo's own kinematics).
+    from envs.models.compiled import compile_scene
+
+    env = _env(arm_name)
+    checker = env.checker
+    scene = checker._filter.scene
+    for seed in (0, 5, 11, 23):
+        env._lay_scene(seed)
+        fresh = compile_scene(checker.model, env.arm.dof, checker._pairs)
+        # (pair_kind: a fresh scene does not skip parked slots; the test above covers that.)
+        for name in ("slot_type", "pair_kind_own", "slot_size", "slot_radius", "slot_geom"):
+            np.testing.assert_array_equal(getattr(scene, name), getattr(fresh, name), name)
+        for name in ("slot_pos", "slot_rot", "pair_fixed", "pair_reach"):
+            np.testing.assert_allclose(getattr(scene, name), getattr(fresh, name),
+                                       rtol=0, atol=1e-12, err_msg=name)
+
+
+def test_a_slot_that_changes_its_kind_is_refused():
+    env = _env("anthropomorphic")
+    checker = env.checker
+    box = int(env._clutter.ids[0, 0])
+    checker.model.geom_type[box] = mujoco.mjtGeom.mjGEOM_SPHERE
+    with pytest.raises(ValueError, match="clutter0_box.*changed its kind"):
+        checker.refresh_static(env._clutter.geoms)

@@ -371,3 +371,16 @@ def test_unsupported_models_are_refused():
     model = spec.compile()
     with pytest.raises(ValueError, match="hinge and slide"):
         C.compile_scene(model, model.nq, np.zeros((0, 2), dtype=np.int64))
+
+
+def test_quaternion_matrices_are_mujocos():
+    rng = np.random.default_rng(8)
+    quats = rng.normal(size=(2000, 4))
+    quats /= np.linalg.norm(quats, axis=1)[:, None]
+    quats[0] = (1.0, 0.0, 0.0, 0.0)
+    for quat in quats:
+        expected = np.zeros(9)
+        mujoco.mju_quat2Mat(expected, quat)
+        np.testing.assert_allclose(C._quat_to_mat(quat), expected.reshape(3, 3), rtol=0,
+                                   atol=1e-15)
+    np.testing.assert_array_equal(C._quat_to_mat(quats[0]), np.eye(3))
