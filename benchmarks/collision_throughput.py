@@ -55,7 +55,7 @@ def _filter_share(checker: CollisionChecker, run) -> tuple[float, float]:
     """(bounded, MuJoCo-checked) samples per path of ``run`` (compiled backend)."""
     before = checker._filter.counters.copy()
     count = run()
-    bounded, exact, _ = checker._filter.counters - before
+    bounded, exact, _, _ = checker._filter.counters - before
     return bounded / count, exact / count
 
 

@@ -1148,8 +1148,9 @@ def check_configurations(tree, geometry, motion, exact, rows, need, out, counter
     """``out[i]``: MuJoCo's contact count at configuration ``rows[i]`` (its leading qpos
     entries; the rest stay at ``qpos0``): 0 where the bounds prove it free, MuJoCo's own
     count elsewhere. ``need`` > 0: rows are checked in order until ``need`` free ones are
-    found; the rows after are not checked (``out`` −1). ``counters`` (3,): samples bounded,
-    MuJoCo checks and exact pair bounds computed are added to it."""
+    found; the rows after are not checked (``out`` −1). ``counters`` (4,): samples bounded,
+    MuJoCo checks, exact pair bounds computed and MuJoCo checks that found no contact
+    (samples free that the bounds could not prove free) are added to it."""
     xpos, xmat, wpos, wrot, rates, coarse = _work(tree, geometry)
     kinematic = tree[:12]
     qpos0 = tree[11]
@@ -1168,6 +1169,8 @@ def check_configurations(tree, geometry, motion, exact, rows, need, out, counter
         else:
             counters[1] += 1
             out[i] = _exact_contacts(qpos, exact)
+            if out[i] == 0:
+                counters[3] += 1
         if out[i] == 0:
             free += 1
 
@@ -1222,7 +1225,9 @@ def check_paths(tree, geometry, motion, exact, start_rows, end_rows, steps, firs
             reach = 0
             if step < 0.0:
                 counters[1] += 1
-                if _exact_contacts(qpos, exact):
+                if not _exact_contacts(qpos, exact):
+                    counters[3] += 1  # the bounds could not prove a free sample free
+                else:
                     found = mid
                     if not first:
                         break
@@ -1310,9 +1315,9 @@ class CompiledFilter:
         self._exact = (data.qpos, native.ncon_view(data),
                        native.function_address("mj_kinematics"),
                        native.function_address("mj_collision"), model._address, data._address)
-        #: Samples bounded, MuJoCo checks, exact pair bounds: totals since construction
-        #: (benchmarks and tests read them).
-        self.counters = np.zeros(3, dtype=np.int64)
+        #: Samples bounded, MuJoCo checks, exact pair bounds, MuJoCo checks that found no
+        #: contact: totals since construction (benchmarks and tests read them).
+        self.counters = np.zeros(4, dtype=np.int64)
 
     def refresh_static(self, geoms: np.ndarray | None = None) -> None:
         """Follow changed static geoms of the model (see :func:`refresh_static`)."""

@@ -152,8 +152,34 @@ def test_the_filter_decides_most_samples_itself():
     q0, q1 = _paths(arm, np.random.default_rng(24), 300)
     grid = int((checker.n_steps(q0, q1) + 1).sum())
     checker.paths_collide(q0, q1)
-    bounded, exact, _ = checker._filter.counters
+    bounded, exact, _, _ = checker._filter.counters
     assert exact < 0.01 * grid and bounded < 0.1 * grid
+
+
+
+def test_mujoco_checks_that_find_no_contact_are_counted():
+    # An ellipsoid is bounded by its box, whose corners stick out: samples there go to
+    # MuJoCo and come back free (false alarms, counters[3]). Every colliding sample reaches
+    # MuJoCo (the bounds never prove it free), so the checks that found a contact are the
+    # colliding configurations, and one per colliding path in a verdict-only call.
+    arm = make_arm("anthropomorphic")
+    spec, _ = arm_spec(arm)
+    egg = add_static_body(spec, "egg").add_geom()
+    egg.name, egg.type = "egg", mujoco.mjtGeom.mjGEOM_ELLIPSOID
+    egg.size, egg.pos = [0.35, 0.35, 0.35], [0.9, 0.0, 1.0]
+    checker = CollisionChecker(compile_spec(spec), dof=arm.dof, backend="compiled")
+    counters = checker._filter.counters
+    rng = np.random.default_rng(25)
+    q = rng.uniform(arm.joint_limits[:, 0], arm.joint_limits[:, 1], size=(3000, arm.dof))
+    before = counters.copy()
+    colliding = checker.collides(q)
+    _, checks, _, alarms = counters - before
+    assert colliding.any() and alarms > 0 and checks - alarms == colliding.sum()
+    q0, q1 = _paths(arm, np.random.default_rng(26), 400)
+    before = counters.copy()
+    hits = checker.paths_collide(q0, q1)
+    _, checks, _, alarms = counters - before
+    assert hits.any() and alarms > 0 and checks - alarms == hits.sum()
 
 
 # ------------------------------------------------------------------ the geometry itself

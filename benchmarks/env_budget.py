@@ -1,0 +1,125 @@
+"""Where an env's time goes: per id, one episode of masked random actions, split by stage.
+
+    .venv/bin/python benchmarks/env_budget.py [--seconds 3] [--ids ID ...]
+
+The loop of ``env_steps.py`` (random *masked* actions from a seeded generator, resets
+included), after a warm-up of ``--warmup`` seconds, with each stage timed per episode (ms):
+
+- ``scene``: laying the per-episode clutter and refreshing the collision filter;
+- ``task``: the task generator (for random reachable waypoints: the chain of
+  collision-free configurations and paths);
+- ``candidates``: every waypoint's IK and the configuration check of every candidate;
+- ``reset, rest``: the rest of ``reset`` (observation templates, the first observation);
+- ``steps``: all ``step`` calls of the episode (their path checks, prices, observations);
+- ``collision``: of all the above, the time inside the compiled filter's calls (bounds and
+  the MuJoCo checks it makes; ``envs/models/compiled.py``);
+- per episode, the filter's counts: samples it bounded, MuJoCo checks, and how many of
+  those found no contact (samples free that the bounds could not prove free).
+
+Numbers depend on the machine and its load: compare rows of one run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import os
+import time
+
+import gymnasium as gym
+import numpy as np
+
+import envs
+from envs.models.compiled import CompiledFilter
+
+#: Stage name -> seconds spent, filled by the timers below.
+SPENT: dict[str, float] = {}
+
+
+def _timed(stage: str, function):
+    @functools.wraps(function)
+    def timed(*args, **kwargs):
+        start = time.perf_counter()
+        try:
+            return function(*args, **kwargs)
+        finally:
+            SPENT[stage] = SPENT.get(stage, 0.0) + time.perf_counter() - start
+
+    return timed
+
+
+# The filter's two entry points, for every env of this process.
+CompiledFilter.paths = _timed("collision", CompiledFilter.paths)
+CompiledFilter.contacts = _timed("collision", CompiledFilter.contacts)
+
+
+def budget(env_id: str, seconds: float, warmup: float) -> dict:
+    env = gym.make(env_id)
+    base = env.unwrapped
+    base._lay_scene = _timed("scene", base._lay_scene)
+    base._generator = _timed("task", base._generator)
+    base.pricer.task = _timed("candidates", base.pricer.task)
+    env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    counters = base.checker._filter.counters if base.checker._filter is not None else None
+
+    def loop(duration: float) -> tuple[int, int, float, float, float]:
+        steps = episodes = 0
+        in_step = in_reset = 0.0
+        start = time.perf_counter()
+        while time.perf_counter() - start < duration:
+            action = int(rng.choice(np.flatnonzero(base.action_masks())))
+            t0 = time.perf_counter()
+            _, _, terminated, truncated, _ = env.step(action)
+            t1 = time.perf_counter()
+            in_step += t1 - t0
+            steps += 1
+            if terminated or truncated:
+                env.reset()
+                in_reset += time.perf_counter() - t1
+                episodes += 1
+        return steps, episodes, in_step, in_reset, time.perf_counter() - start
+
+    loop(warmup)
+    SPENT.clear()
+    before = None if counters is None else counters.copy()
+    steps, episodes, in_step, in_reset, total = loop(seconds)
+    per = 1e3 / max(episodes, 1)
+    row = {stage: SPENT.get(stage, 0.0) * per for stage in ("scene", "task", "candidates",
+                                                            "collision")}
+    row["rest"] = in_reset * per - row["scene"] - row["task"] - row["candidates"]
+    row["steps"] = in_step * per
+    row["episode"] = total * per
+    row["step/s"] = steps / total
+    row["steps/episode"] = steps / max(episodes, 1)
+    counts = (np.zeros(4) if counters is None else counters - before) / max(episodes, 1)
+    row["bounded"], row["mujoco"], row["free"] = counts[0], counts[1], counts[3]
+    env.close()
+    return row
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawTextHelpFormatter
+    )
+    parser.add_argument("--seconds", type=float, default=3.0, help="timed loop per id")
+    parser.add_argument("--warmup", type=float, default=1.0, help="warm-up per id, seconds")
+    parser.add_argument("--ids", nargs="*", default=None, help="ids (default: all)")
+    args = parser.parse_args()
+    ids = args.ids or list(envs.ENV_IDS)
+    print(f"{os.cpu_count()} CPUs; {args.seconds:g} s per id after {args.warmup:g} s of "
+          "warm-up; ms per episode unless stated\n")
+    print("| id | steps/s with resets | steps/episode | episode | scene | task | candidates "
+          "| reset, rest | steps | of all: collision | samples bounded | MuJoCo checks "
+          "| of them free |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for env_id in ids:
+        r = budget(env_id, args.seconds, args.warmup)
+        print(f"| {env_id} | {r['step/s']:,.0f} | {r['steps/episode']:.1f} | {r['episode']:.2f} "
+              f"| {r['scene']:.2f} | {r['task']:.2f} | {r['candidates']:.2f} | {r['rest']:.2f} "
+              f"| {r['steps']:.2f} | {r['collision']:.2f} | {r['bounded']:,.0f} "
+              f"| {r['mujoco']:,.1f} | {r['free']:,.1f} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
