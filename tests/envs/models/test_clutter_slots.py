@@ -162,6 +162,21 @@ def test_a_refreshed_filter_equals_one_compiled_for_the_laid_scene(arm_name):
         for name in ("slot_pos", "slot_rot", "pair_fixed", "pair_reach"):
             np.testing.assert_allclose(getattr(scene, name), getattr(fresh, name),
                                        rtol=0, atol=1e-12, err_msg=name)
+    # Without a list, every static geom is read again (here: after wiping them all).
+    refreshed = {name: getattr(scene, name).copy() for name in ("slot_pos", "slot_rot",
+                                                                 "slot_radius", "pair_reach")}
+    static = np.flatnonzero(scene.slot_static)
+    scene.slot_pos[static], scene.slot_rot[static], scene.slot_radius[static] = 0.0, 0.0, 0.0
+    scene.pair_reach[:] = 0.0
+    checker.refresh_static()
+    with_static = scene.slot_static[scene.pair_b]  # the pairs a static geom's refresh sets
+    assert with_static.any()
+    for name, values in refreshed.items():
+        if name == "pair_reach":
+            values, now = values[with_static], scene.pair_reach[with_static]
+        else:
+            now = getattr(scene, name)
+        np.testing.assert_array_equal(now, values, err_msg=name)
 
 
 def test_a_slot_that_changes_its_kind_is_refused():
