@@ -14,10 +14,13 @@ cache                bound         key → value
 poses                50,000        waypoint pose → IK candidates, validity, endpoint hits
 configurations       200,000       configuration → collides (the generators' predicate)
 paths                200,000       (q0, q1) → the linear path collides
+templates            64 MB         a task's candidates, validity and endpoint hits → the
+                                   observation templates (``envs.observations``)
 ==================== ============ ========================================================
 
 A task with a finite pose set (the milling cell's tool changes) solves and checks each
-pose and each move once; random tasks mostly miss, and a miss costs one batched call.
+pose and each move once, and assembles its observation templates once; random tasks
+mostly miss, and a miss costs one batched call.
 
 :class:`TaskMoves` is one task's ladder: the candidates of every waypoint and the price of
 every move into it, by :meth:`TaskMoves.terms`, the one function that prices a move.
@@ -39,6 +42,9 @@ from envs.tasks import Task
 POSE_CACHE_SIZE = 50_000
 CONFIGURATION_CACHE_SIZE = 200_000
 PATH_CACHE_SIZE = 200_000
+#: Bound of the observation-template cache, in bytes (its entries are large: N + 1
+#: observations a task).
+TEMPLATE_CACHE_BYTES = 64 * 2**20
 
 #: The reward terms of a move, in the order they are summed (``info`` reports each).
 REWARD_TERMS = ("reward_travel", "reward_time", "reward_collision", "reward_invalid",
@@ -373,6 +379,9 @@ class TaskMoves:
         shape = (count, origins.shape[1], k)
         if collision is None:
             collision = np.zeros(shape, dtype=np.bool_)
+        elif (isinstance(collision, np.ndarray) and collision.dtype == np.bool_
+              and collision.shape == shape[1:] and collision.flags.c_contiguous and not lead):
+            collision = collision.reshape(shape)  # a step's own verdicts: no copy needed
         else:
             collision = np.ascontiguousarray(np.broadcast_to(collision, (*lead, *shape[1:])),
                                              dtype=np.bool_).reshape(shape)

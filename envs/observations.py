@@ -33,7 +33,7 @@ import numpy as np
 from numba import njit
 
 from envs.kinematics import Arm
-from envs.moves import TaskMoves
+from envs.moves import TEMPLATE_CACHE_BYTES, TaskMoves
 
 #: The observation layouts (module docstring).
 OBSERVATIONS = ("compact", "ladder")
@@ -79,6 +79,10 @@ class ObservationBuilder:
         onward = self.layout.get("slot0/free_travel_out")
         self._onward0 = None if onward is None else slice(*onward)
         self._templates = np.zeros((1, self.size), dtype=np.float32)
+        #: (candidates, valid, endpoint_collision) bytes of a task -> its templates
+        #: (read-only), cleared when it would grow past ``TEMPLATE_CACHE_BYTES``.
+        self._cache: dict[tuple[bytes, bytes, bytes], np.ndarray] = {}
+        self._cached_bytes = 0
 
     def _layout(self) -> dict[str, tuple[int, int]]:
         dof, k = self.arm.dof, self.arm.n_branches
@@ -106,7 +110,24 @@ class ObservationBuilder:
     def prepare(self, ladder: TaskMoves) -> None:
         """Everything of the observation a task fixes: ``_templates[i]`` is the
         observation at ``index == i`` (i = 0 … N) but for ``q`` and slot 0's ``travel``
-        and ``path_collision``, which :meth:`observe` fills in."""
+        and ``path_collision``, which :meth:`observe` fills in. They depend on the task's
+        candidates, their validity and endpoint hits only, so a task seen before (a
+        finite pose set) takes them from the cache."""
+        key = (ladder.candidates.tobytes(), ladder.valid.tobytes(),
+               ladder.endpoint_collision.tobytes())
+        templates = self._cache.get(key)
+        if templates is None:
+            templates = self._assemble(ladder)
+            templates.flags.writeable = False
+            if self._cached_bytes + templates.nbytes > TEMPLATE_CACHE_BYTES:
+                self._cache.clear()
+                self._cached_bytes = 0
+            self._cache[key] = templates
+            self._cached_bytes += templates.nbytes
+        self._templates = templates
+
+    def _assemble(self, ladder: TaskMoves) -> np.ndarray:
+        """The templates of :meth:`prepare`, (N + 1, size) float32."""
         n, k, dof = ladder.n_waypoints, self.arm.n_branches, self.arm.dof
         valid = ladder.valid
         # Per waypoint: present, candidates (invalid ones at the centre: 0), valid, endpoint.
@@ -124,7 +145,7 @@ class ObservationBuilder:
             self._prepare_ladder(ladder, common, templates, width)
         # Values sit inside [−1, 1] by construction; the clip only absorbs the 1e-9 slack
         # with which a branch may lie on a joint limit.
-        self._templates = np.clip(templates, -1.0, 1.0).astype(np.float32)
+        return np.clip(templates, -1.0, 1.0).astype(np.float32)
 
     def _prepare_ladder(self, ladder, common, templates, width) -> None:
         n, k = ladder.n_waypoints, self.arm.n_branches

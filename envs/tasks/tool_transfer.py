@@ -86,6 +86,16 @@ def _usable_grips(arm: Arm, is_free: FreePredicate) -> np.ndarray:
     return grips
 
 
+@lru_cache(maxsize=256)
+def _free_parked_configurations(arm: Arm, is_free: FreePredicate) -> np.ndarray:
+    """The collision-free ones of ``_parked_configurations``, remembered per (arm,
+    predicate) as ``_usable_grips`` is (the milling cell never changes); read-only."""
+    parked = _parked_configurations(arm)
+    free = parked[is_free(parked)]
+    free.flags.writeable = False
+    return free
+
+
 def _require_anthropomorphic(arm: Arm, scene: str) -> None:
     if arm.name != "anthropomorphic":
         raise ValueError(f"the milling-cell tasks need the anthropomorphic arm, not {arm.name!r}")
@@ -141,8 +151,7 @@ def tool_changes(
         [above[grips, chosen], slots[grips, chosen], above[grips, chosen], spindle[grips]],
         axis=1,
     )
-    parked = _parked_configurations(arm)
-    parked = parked[is_free(parked)]
+    parked = _free_parked_configurations(arm, is_free)
     return Task(
         start=parked[rng.integers(len(parked))].copy(),
         poses=cycle.reshape(-1, 4, 4)[:n_waypoints],

@@ -119,3 +119,35 @@ def test_ids_with_models_trained_on_the_ladder_layout_keep_it():
 def test_unknown_layout_is_refused():
     with pytest.raises(ValueError, match="observation"):
         gym.make("IKBranch/ToolTransfer-v0", observation="dense")
+
+
+@pytest.mark.parametrize("kind", OBSERVATIONS)
+def test_a_task_seen_again_takes_its_templates_from_the_cache(kind, monkeypatch):
+    # The milling cell's tool changes come from a finite set: their templates are built
+    # once per task (they depend on the candidates, validity and endpoint hits only).
+    env = gym.make("IKBranch/ToolTransfer-v0", observation=kind)
+    base = env.unwrapped
+    builder = base._observations
+    env.reset(seed=3)
+    ladder, templates = base.ladder, builder._templates
+    np.testing.assert_array_equal(templates, builder._assemble(ladder))
+    assert not templates.flags.writeable
+    for seed in range(40):  # other tasks, then the first one again
+        env.reset(seed=seed)
+        if not np.array_equal(base.ladder.candidates, ladder.candidates):
+            assert not np.array_equal(builder._templates, templates)
+    builder.prepare(ladder)
+    assert builder._templates is templates
+    # Past its bound the cache starts afresh (here: room for one task).
+    monkeypatch.setattr("envs.observations.TEMPLATE_CACHE_BYTES", templates.nbytes)
+    fresh = gym.make("IKBranch/ToolTransfer-v0", observation=kind).unwrapped
+    fresh.reset(seed=3)
+    first = fresh._observations._templates
+    seed = 4
+    while np.array_equal(fresh.ladder.candidates, ladder.candidates):
+        fresh.reset(seed=seed)
+        seed += 1
+    assert len(fresh._observations._cache) == 1
+    fresh._observations.prepare(ladder)
+    assert fresh._observations._templates is not first
+    np.testing.assert_array_equal(fresh._observations._templates, first)

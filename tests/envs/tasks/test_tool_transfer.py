@@ -163,3 +163,17 @@ def test_tool_changes_take_only_grips_whose_every_pose_has_a_free_branch():
             assert np.allclose(task.poses[4 * tool + 3], spindle[1])
     with pytest.raises(ValueError, match="cannot change tools"):
         TASKS["tool_changes"](ARM, rng, 8, nowhere_free, all_paths_free)
+
+
+def test_the_free_parked_starts_are_the_parked_configurations_the_predicate_passes():
+    from envs.tasks.tool_transfer import _free_parked_configurations
+
+    parked = _parked_configurations(ARM)
+
+    def is_free(q, need=None):  # every other parked configuration
+        return np.arange(len(q)) % 2 == 0
+
+    free = _free_parked_configurations(ARM, is_free)
+    np.testing.assert_array_equal(free, parked[::2])
+    assert not free.flags.writeable
+    assert _free_parked_configurations(ARM, is_free) is free  # asked once per predicate
