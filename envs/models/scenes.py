@@ -179,21 +179,21 @@ def draw_clutter(arm: Arm, seed: int, base: list[tuple[np.ndarray, float]],
     discs = np.array([disc for disc, _ in base], dtype=np.float64).reshape(-1, 2)
     radii = np.array([radius for _, radius in base], dtype=np.float64)
     obstacles = []
-    for k, centre in enumerate(centres):
-        half = rng.uniform(0.05, 0.2, size=2)
+    # Python floats: the same IEEE arithmetic as numpy scalars, without their overhead.
+    for k, (cx, cy, cz) in enumerate(centres.tolist()):
+        h0, h1 = rng.uniform(0.05, 0.2, size=2).tolist()
         # Reach up to somewhere around the sampled wrist centre (never below 0.1 m).
-        top = max(0.1, centre[2] + rng.uniform(-0.4, 0.0))
-        offset = rng.normal(scale=0.25, size=2)
-        xy = centre[:2] + offset
-        footprint = float(np.hypot(*half))
-        if (np.hypot(xy[0] - discs[:, 0], xy[1] - discs[:, 1]) < footprint + radii).any():
+        top = max(0.1, cz + rng.uniform(-0.4, 0.0))
+        o0, o1 = rng.normal(scale=0.25, size=2).tolist()
+        x, y = cx + o0, cy + o1
+        footprint = float(np.hypot(h0, h1))
+        if (np.hypot(x - discs[:, 0], y - discs[:, 1]) < footprint + radii).any():
             continue
-        pos = (float(xy[0]), float(xy[1]), top / 2)
+        pos = (x, y, top / 2)
         if rng.random() < 0.5:
-            obstacles.append(Obstacle(k, "box", (float(half[0]), float(half[1]), top / 2), pos))
+            obstacles.append(Obstacle(k, "box", (h0, h1, top / 2), pos))
         else:
-            obstacles.append(Obstacle(k, "cylinder", (float(half[0]), float(half[0]), top / 2),
-                                      pos))
+            obstacles.append(Obstacle(k, "cylinder", (h0, h0, top / 2), pos))
     return obstacles
 
 
