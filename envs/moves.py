@@ -15,7 +15,9 @@ poses                50,000        waypoint pose → IK candidates, validity, en
 configurations       200,000       configuration → collides (the generators' predicate)
 paths                200,000       (q0, q1) → the linear path collides
 templates            64 MB         a task's candidates, validity and endpoint hits → the
-                                   observation templates (``envs.observations``)
+                                   observation templates (``envs.observations``); kept
+                                   from a task's second sighting (hashes of up to 100,000
+                                   tasks remembered), so random tasks store nothing
 ==================== ============ ========================================================
 
 A task with a finite pose set (the milling cell's tool changes) solves and checks each
@@ -43,8 +45,9 @@ POSE_CACHE_SIZE = 50_000
 CONFIGURATION_CACHE_SIZE = 200_000
 PATH_CACHE_SIZE = 200_000
 #: Bound of the observation-template cache, in bytes (its entries are large: N + 1
-#: observations a task).
+#: observations a task), and of the tasks it remembers having seen once.
 TEMPLATE_CACHE_BYTES = 64 * 2**20
+TEMPLATE_SIGHTINGS = 100_000
 
 #: The reward terms of a move, in the order they are summed (``info`` reports each).
 REWARD_TERMS = ("reward_travel", "reward_time", "reward_collision", "reward_invalid",

@@ -33,7 +33,7 @@ import numpy as np
 from numba import njit
 
 from envs.kinematics import Arm
-from envs.moves import TEMPLATE_CACHE_BYTES, TaskMoves
+from envs.moves import TEMPLATE_CACHE_BYTES, TEMPLATE_SIGHTINGS, TaskMoves
 
 #: The observation layouts (module docstring).
 OBSERVATIONS = ("compact", "ladder")
@@ -80,9 +80,12 @@ class ObservationBuilder:
         self._onward0 = None if onward is None else slice(*onward)
         self._templates = np.zeros((1, self.size), dtype=np.float32)
         #: (candidates, valid, endpoint_collision) bytes of a task -> its templates
-        #: (read-only), cleared when it would grow past ``TEMPLATE_CACHE_BYTES``.
+        #: (read-only), cleared when it would grow past ``TEMPLATE_CACHE_BYTES``; only
+        #: tasks seen before (``_sighted``: hashes of keys) are kept, so that tasks which
+        #: never repeat (random waypoints) fill no memory.
         self._cache: dict[tuple[bytes, bytes, bytes], np.ndarray] = {}
         self._cached_bytes = 0
+        self._sighted: set[int] = set()
 
     def _layout(self) -> dict[str, tuple[int, int]]:
         dof, k = self.arm.dof, self.arm.n_branches
@@ -111,19 +114,25 @@ class ObservationBuilder:
         """Everything of the observation a task fixes: ``_templates[i]`` is the
         observation at ``index == i`` (i = 0 … N) but for ``q`` and slot 0's ``travel``
         and ``path_collision``, which :meth:`observe` fills in. They depend on the task's
-        candidates, their validity and endpoint hits only, so a task seen before (a
-        finite pose set) takes them from the cache."""
+        candidates, their validity and endpoint hits only, so a task met again (a finite
+        pose set) takes them from the cache."""
         key = (ladder.candidates.tobytes(), ladder.valid.tobytes(),
                ladder.endpoint_collision.tobytes())
         templates = self._cache.get(key)
         if templates is None:
             templates = self._assemble(ladder)
             templates.flags.writeable = False
-            if self._cached_bytes + templates.nbytes > TEMPLATE_CACHE_BYTES:
-                self._cache.clear()
-                self._cached_bytes = 0
-            self._cache[key] = templates
-            self._cached_bytes += templates.nbytes
+            sighting = hash(key)
+            if sighting in self._sighted:  # a task seen before: this env's tasks repeat
+                if self._cached_bytes + templates.nbytes > TEMPLATE_CACHE_BYTES:
+                    self._cache.clear()
+                    self._cached_bytes = 0
+                self._cache[key] = templates
+                self._cached_bytes += templates.nbytes
+            else:
+                if len(self._sighted) >= TEMPLATE_SIGHTINGS:
+                    self._sighted.clear()
+                self._sighted.add(sighting)
         self._templates = templates
 
     def _assemble(self, ladder: TaskMoves) -> np.ndarray:

@@ -122,32 +122,38 @@ def test_unknown_layout_is_refused():
 
 
 @pytest.mark.parametrize("kind", OBSERVATIONS)
-def test_a_task_seen_again_takes_its_templates_from_the_cache(kind, monkeypatch):
-    # The milling cell's tool changes come from a finite set: their templates are built
-    # once per task (they depend on the candidates, validity and endpoint hits only).
+def test_a_task_met_again_takes_its_templates_from_the_cache(kind, monkeypatch):
+    # The milling cell's tool changes come from a finite set: from its second sighting a
+    # task's templates come from the cache (they depend on its candidates, validity and
+    # endpoint hits only).
     env = gym.make("IKBranch/ToolTransfer-v0", observation=kind)
     base = env.unwrapped
     builder = base._observations
     env.reset(seed=3)
-    ladder, templates = base.ladder, builder._templates
-    np.testing.assert_array_equal(templates, builder._assemble(ladder))
-    assert not templates.flags.writeable
-    for seed in range(40):  # other tasks, then the first one again
-        env.reset(seed=seed)
-        if not np.array_equal(base.ladder.candidates, ladder.candidates):
-            assert not np.array_equal(builder._templates, templates)
+    ladder, first = base.ladder, builder._templates
+    np.testing.assert_array_equal(first, builder._assemble(ladder))
+    assert not first.flags.writeable and not builder._cache  # seen once: not kept
     builder.prepare(ladder)
-    assert builder._templates is templates
+    kept = builder._templates
+    builder.prepare(ladder)
+    assert builder._templates is kept and len(builder._cache) == 1
+    np.testing.assert_array_equal(kept, first)
     # Past its bound the cache starts afresh (here: room for one task).
-    monkeypatch.setattr("envs.observations.TEMPLATE_CACHE_BYTES", templates.nbytes)
-    fresh = gym.make("IKBranch/ToolTransfer-v0", observation=kind).unwrapped
-    fresh.reset(seed=3)
-    first = fresh._observations._templates
+    monkeypatch.setattr("envs.observations.TEMPLATE_CACHE_BYTES", first.nbytes)
     seed = 4
-    while np.array_equal(fresh.ladder.candidates, ladder.candidates):
-        fresh.reset(seed=seed)
+    while np.array_equal(base.ladder.candidates, ladder.candidates):
+        env.reset(seed=seed)
         seed += 1
-    assert len(fresh._observations._cache) == 1
-    fresh._observations.prepare(ladder)
-    assert fresh._observations._templates is not first
-    np.testing.assert_array_equal(fresh._observations._templates, first)
+    builder.prepare(base.ladder)  # the other task, met a second time: kept, the first dropped
+    assert len(builder._cache) == 1
+    builder.prepare(ladder)
+    assert builder._templates is not kept
+    np.testing.assert_array_equal(builder._templates, first)
+
+
+def test_tasks_that_never_repeat_fill_no_template_cache():
+    env = gym.make("IKBranch/Cartesian-v2")
+    for seed in range(30):
+        env.reset(seed=seed)
+    builder = env.unwrapped._observations
+    assert not builder._cache and len(builder._sighted) == 30
