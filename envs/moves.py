@@ -279,6 +279,42 @@ def _price(origins, candidates, valid, waypoints, collision, free_start, n, weig
                 flags[1, w, r, b], flags[2, w, r, b] = hit, invalid
 
 
+@njit(cache=True)
+def _onward_travel(here, there, rows, targets, weights, out):
+    """``out[a, b]`` (K, K): the travel from ``here[a]`` to ``there[b]`` where ``rows[a]``
+    and ``targets[b]``, summed as :func:`_price` sums it (Σ_j w_j|Δq_j| in joint order),
+    +inf elsewhere; ``rows[a]`` is cleared where no target is left."""
+    for a in range(here.shape[0]):
+        reached = False
+        for b in range(there.shape[0]):
+            if not (rows[a] and targets[b]):
+                out[a, b] = np.inf
+                continue
+            travel = 0.0
+            for j in range(here.shape[1]):
+                travel += abs(there[b, j] - here[a, j]) * weights[j]
+            out[a, b] = travel
+            reached = reached or travel < np.inf
+        rows[a] = reached
+
+
+@njit(cache=True)
+def _take_or_try_next(rows, columns, hits, travel, order, tried, out, pending):
+    """One round of :meth:`TaskMoves.least_free_travel`: row ``rows[i]`` whose path to
+    ``columns[i]`` is free takes that travel; the others move on to their next cheapest
+    target, and stop where none is left."""
+    k = order.shape[1]
+    for i in range(len(rows)):
+        row = rows[i]
+        if not hits[i]:
+            out[row] = travel[row, columns[i]]
+            pending[row] = False
+            continue
+        tried[row] += 1
+        if tried[row] == k or not travel[row, order[row, tried[row]]] < np.inf:
+            pending[row] = False
+
+
 def _finite_rows(q, what: str) -> np.ndarray:
     """``q`` as C-contiguous float64 rows (M, dof), ``ValueError`` if any value is NaN/inf."""
     q = np.ascontiguousarray(q, dtype=np.float64)
@@ -436,24 +472,17 @@ class TaskMoves:
         if waypoint + 1 >= self.n_waypoints:
             return out
         here, there = self.candidates[waypoint], self.candidates[waypoint + 1]
-        travel, _ = self.motion(here, waypoint + 1)
         targets = self.valid[waypoint + 1] & ~self.endpoint_collision[waypoint + 1]
-        travel = np.where(targets[None] & (branches & self.valid[waypoint])[:, None],
-                          travel, np.inf)
+        travel = np.empty((k, k))
+        pending = np.asarray(branches & self.valid[waypoint], dtype=np.bool_)
+        _onward_travel(here, there, pending, targets, self.pricer.cost.weights, travel)
         order = np.argsort(travel, axis=1, kind="stable")
         tried = np.zeros(k, dtype=np.int64)
-        pending = np.isfinite(travel.min(axis=1))
         while pending.any():
             rows = np.flatnonzero(pending)
             columns = order[rows, tried[rows]]
             hits = self.pricer.paths_collide(here[rows], there[columns])
-            for row, column, hit in zip(rows, columns, hits, strict=True):
-                if not hit:
-                    out[row], pending[row] = travel[row, column], False
-                    continue
-                tried[row] += 1
-                if tried[row] == k or not np.isfinite(travel[row, order[row, tried[row]]]):
-                    pending[row] = False
+            _take_or_try_next(rows, columns, hits, travel, order, tried, out, pending)
         return out
 
     def travel_from(self, q: np.ndarray, waypoint: int) -> np.ndarray:

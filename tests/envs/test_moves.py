@@ -36,6 +36,29 @@ def test_stacked_prices_equal_each_waypoints_edges(env_id):
 
 
 @pytest.mark.parametrize("env_id", IDS)
+def test_onward_travel_is_the_priced_travel(env_id):
+    # least_free_travel ranks onward moves by a travel-only kernel: bit for bit the
+    # travel that step pays, inf off the rows and targets asked for.
+    from envs.moves import _onward_travel
+
+    ladder = _ladder(env_id, seed=2)
+    k = ladder.valid.shape[1]
+    rng = np.random.default_rng(3)
+    for w in range(ladder.n_waypoints - 1):
+        here = ladder.candidates[w]
+        priced, _ = ladder.motion(here, w + 1)
+        rows = ladder.valid[w] & (rng.random(k) < 0.7)
+        targets = ladder.valid[w + 1] & (rng.random(k) < 0.7)
+        out, asked = np.empty((k, k)), rows.copy()
+        _onward_travel(here, ladder.candidates[w + 1], asked, targets,
+                       ladder.pricer.cost.weights, out)
+        both = rows[:, None] & targets[None]
+        np.testing.assert_array_equal(out[both], priced[both])
+        assert np.isposinf(out[~both]).all()
+        np.testing.assert_array_equal(asked, rows & targets.any())
+
+
+@pytest.mark.parametrize("env_id", IDS)
 def test_reward_is_the_sum_of_its_terms_and_travel_is_the_cost_models(env_id):
     ladder = _ladder(env_id, seed=1)
     rng = np.random.default_rng(0)
