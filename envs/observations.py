@@ -210,7 +210,8 @@ class ObservationBuilder:
         episode is over; ``onward`` (K) the least travel onward along a free path from each
         branch (``TaskMoves.least_free_travel``; inf where none), for the compact layout."""
         obs = self._templates[index].copy()
-        obs[self._q] = np.clip(self.normalise(q), -1.0, 1.0)
+        # np.clip's values, without its dispatch (a fifth of this function's time).
+        obs[self._q] = np.minimum(np.maximum(self.normalise(q), -1.0), 1.0)
         if moves is None:
             return obs
         travel = np.asarray(moves["travel"]) / self.travel_scale  # invalid branches: 0

@@ -1315,6 +1315,9 @@ class CompiledFilter:
         self._exact = (data.qpos, native.ncon_view(data),
                        native.function_address("mj_kinematics"),
                        native.function_address("mj_collision"), model._address, data._address)
+        # The kernels' leading arguments, built once (the arrays are refreshed in place).
+        self._scene_arguments = (self.scene.tree, self.scene.geometry, self.scene.motion,
+                                 self._exact)
         #: Samples bounded, MuJoCo checks, exact pair bounds, MuJoCo checks that found no
         #: contact: totals since construction (benchmarks and tests read them).
         self.counters = np.zeros(4, dtype=np.int64)
@@ -1327,8 +1330,7 @@ class CompiledFilter:
         """(M,) contact counts at configurations ``rows`` (M, dof): 0 where proven free.
         ``need`` > 0: only until ``need`` free rows are found (the rest −1, unchecked)."""
         out = np.empty(len(rows), dtype=np.int64)
-        check_configurations(self.scene.tree, self.scene.geometry, self.scene.motion,
-                             self._exact, rows, need, out, self.counters)
+        check_configurations(*self._scene_arguments, rows, need, out, self.counters)
         return out
 
     def paths(self, start_rows: np.ndarray, end_rows: np.ndarray, steps: np.ndarray,
@@ -1336,8 +1338,8 @@ class CompiledFilter:
         """(M,) grid index of a colliding sample per path (−1: free), the lowest with
         ``first``; ``start_rows`` (M or 1, dof), ``end_rows`` (M, dof), ``steps`` (M,)."""
         out = np.empty(len(end_rows), dtype=np.int64)
-        check_paths(self.scene.tree, self.scene.geometry, self.scene.motion, self._exact,
-                    start_rows, end_rows, steps, first, out, self.counters)
+        check_paths(*self._scene_arguments, start_rows, end_rows, steps, first, out,
+                    self.counters)
         return out
 
 
