@@ -40,23 +40,35 @@ OBSERVATIONS = ("compact", "ladder")
 
 
 @njit(cache=True)
-def _least_travel(here, valid_here, there, valid_there, weights, out_from, out_to):
-    """Per branch k of ``here`` (K, dof), the least weighted travel Σ_j w_j|Δq_j| to any
-    valid branch of ``there`` (``out_from``), and per branch of ``there`` the least from
-    any valid branch of ``here`` (``out_to``); +inf where nothing is valid."""
-    out_from[:] = np.inf
-    out_to[:] = np.inf
-    for a in range(here.shape[0]):
-        if not valid_here[a]:
-            continue
-        for b in range(there.shape[0]):
-            if not valid_there[b]:
+def _travel_summaries(candidates, valid, free, weights, scale, leaving, arriving):
+    """Per waypoint i < N − 1 and branch a, the least weighted travel Σ_j w_j|Δq_j| from
+    valid branch a to any *free* branch of waypoint i + 1 (``leaving[i, a]``), and per
+    branch b of waypoint i + 1 the least from any free branch of waypoint i
+    (``arriving[i + 1, b]``), over ``scale`` and capped at 1 (1 where nothing qualifies,
+    for invalid branches, at the ends). One pass over each pair of waypoints."""
+    n, k, dof = candidates.shape
+    leaving[:] = 1.0
+    arriving[:] = 1.0
+    out_from, out_to = np.empty(k), np.empty(k)
+    for i in range(n - 1):
+        out_from[:] = np.inf
+        out_to[:] = np.inf
+        for a in range(k):
+            if not valid[i, a]:
                 continue
-            travel = 0.0
-            for j in range(here.shape[1]):
-                travel += abs(there[b, j] - here[a, j]) * weights[j]
-            out_from[a] = min(out_from[a], travel)
-            out_to[b] = min(out_to[b], travel)
+            for b in range(k):
+                if not valid[i + 1, b]:
+                    continue
+                travel = 0.0
+                for j in range(dof):
+                    travel += abs(candidates[i + 1, b, j] - candidates[i, a, j]) * weights[j]
+                if free[i + 1, b]:
+                    out_from[a] = min(out_from[a], travel)
+                if free[i, a]:
+                    out_to[b] = min(out_to[b], travel)
+        for a in range(k):
+            leaving[i, a] = min(out_from[a] / scale, 1.0)
+            arriving[i + 1, a] = min(out_to[a] / scale, 1.0)
 
 
 class ObservationBuilder:
@@ -176,20 +188,12 @@ class ObservationBuilder:
 
     def _prepare_compact(self, ladder, common, templates) -> None:
         n, k = ladder.n_waypoints, self.arm.n_branches
-        # leaving[i] (K): from waypoint i onwards; arriving[i] (K): into waypoint i.
-        leaving, arriving = np.ones((n, k)), np.ones((n, k))
-        weights = ladder.pricer.cost.weights
-        out_from, out_to = np.empty(k), np.empty(k)
-        free = ladder.valid & ~ladder.endpoint_collision
-        for i in range(n - 1):
-            # From every valid branch to the free ones after, and into every valid branch
-            # from the free ones before.
-            _least_travel(ladder.candidates[i], ladder.valid[i], ladder.candidates[i + 1],
-                          free[i + 1], weights, out_from, out_to)
-            leaving[i] = np.minimum(out_from / self.travel_scale, 1.0)
-            _least_travel(ladder.candidates[i], free[i], ladder.candidates[i + 1],
-                          ladder.valid[i + 1], weights, out_from, out_to)
-            arriving[i + 1] = np.minimum(out_to / self.travel_scale, 1.0)
+        # leaving[i] (K): from waypoint i onwards, to the free branches after; arriving[i]
+        # (K): into waypoint i, from the free branches before.
+        leaving, arriving = np.empty((n, k)), np.empty((n, k))
+        _travel_summaries(ladder.candidates, ladder.valid,
+                          ladder.valid & ~ladder.endpoint_collision, ladder.pricer.cost.weights,
+                          float(self.travel_scale), leaving, arriving)
         for h in range(min(self.lookahead, n - 1) + 1):
             rows = n - h  # indices 0 … n − h − 1 see waypoint index + h inside the task
             start = self.layout[f"slot{h}/present"][0]
