@@ -17,7 +17,7 @@ $(STAMP): pyproject.toml
 install: $(STAMP)
 
 # Compiled kernels (numba) land in its on-disk cache once, before parallel processes use them.
-WARM_UP := $(BIN)/python -c "import envs.models.compiled as c, agents.dp as d, envs.kinematics.compiled as k; c.warm_up(); d.warm_up(); k.warm_up()"
+WARM_UP := $(BIN)/python -c "import envs, agents.dp as d; envs.warm_up(); d.warm_up()"
 
 demo: $(STAMP)
 	$(WARM_UP)

@@ -89,4 +89,23 @@ for _env_id, _kwargs in ENV_SPECS.items():
     if _env_id not in gym.registry:
         gym.register(_env_id, entry_point="envs.ik_branch_env:IKBranchEnv", kwargs=_kwargs)
 
-__all__ = ["ENV_IDS", "ENV_SPECS"]
+
+
+def warm_up() -> None:
+    """Compile (or load from numba's on-disk cache) every kernel an episode runs: the IK
+    driver, the collision filter, move pricing and observation assembly. ``make`` runs it
+    once before parallel processes (test workers) start, so they load instead of compiling
+    the same kernels at once."""
+    from envs.kinematics import compiled as kinematics
+    from envs.models import compiled as collision
+
+    kinematics.warm_up()
+    collision.warm_up()
+    for env_id in ("IKBranch/Anthropomorphic-v2", "IKBranch/ToolTransfer-v1"):
+        env = gym.make(env_id)  # a per-episode clutter; a fixed cell
+        env.reset(seed=0)
+        env.step(int(env.unwrapped.action_masks().argmax()))
+        env.close()
+
+
+__all__ = ["ENV_IDS", "ENV_SPECS", "warm_up"]

@@ -435,7 +435,8 @@ def refresh_static(scene: CompiledScene, model: mujoco.MjModel,
         scene.slot_extent, scene.pair_fixed, scene.pair_reach, scene.pair_kind,
         model.geom_type, model.geom_size, model.geom_aabb, model.geom_quat, model.geom_pos)
     if changed >= 0:
-        raise ValueError(f"geom {model.geom(int(scene.slot_geom[changed])).name!r} changed its kind")
+        name = model.geom(int(scene.slot_geom[changed])).name
+        raise ValueError(f"geom {name!r} changed its kind")
 
 
 @njit(cache=True)
@@ -451,13 +452,8 @@ def _refresh_static(every, geoms, slot_geom, slot_body, slot_static, slot_type, 
         if not slot_static[s]:
             continue
         g = slot_geom[s]
-        if not every:
-            listed = False
-            for i in range(len(geoms)):
-                if geoms[i] == g:
-                    listed = True
-            if not listed:
-                continue
+        if not (every or _listed(geoms, g)):
+            continue
         kind, size, offset, radius = _container(geom_type[g], geom_size[g], geom_aabb[g])
         if kind != slot_type[s]:
             return s
@@ -479,6 +475,23 @@ def _refresh_static(every, geoms, slot_geom, slot_body, slot_static, slot_type, 
                                  + body_xmat[body, i, 2] * geom_pos[g, 2])
                               + (slot_rot[s, i, 0] * offset[0] + slot_rot[s, i, 1] * offset[1]
                                  + slot_rot[s, i, 2] * offset[2]))
+    _refresh_pairs(refreshed, slot_pos, slot_rot, slot_type, slot_radius, pair_a, pair_b,
+                   pair_margin, pair_kind_own, slot_extent, pair_fixed, pair_reach, pair_kind)
+    return -1
+
+
+@njit(cache=True)
+def _listed(geoms, g):
+    for i in range(len(geoms)):
+        if geoms[i] == g:
+            return True
+    return False
+
+
+@njit(cache=True)
+def _refresh_pairs(refreshed, slot_pos, slot_rot, slot_type, slot_radius, pair_a, pair_b,
+                   pair_margin, pair_kind_own, slot_extent, pair_fixed, pair_reach, pair_kind):
+    """What the pairs keep of their ``refreshed`` static slots (see :func:`refresh_static`)."""
     for k in range(len(pair_b)):
         b = pair_b[k]
         if not refreshed[b]:
@@ -497,7 +510,6 @@ def _refresh_static(every, geoms, slot_geom, slot_body, slot_static, slot_type, 
         gap = math.sqrt(x * x + y * y + z * z) - partner - pair_margin[k]
         far = pair_kind_own[k] == 0 and gap > slot_extent[pair_a[k]]
         pair_kind[k] = OUT_OF_REACH if far else pair_kind_own[k]
-    return -1
 
 
 # -------------------------------------------------------------------- distance kernels
@@ -1353,6 +1365,7 @@ def warm_up() -> None:
     model = build_model("anthropomorphic", "random_clutter")
     for pad in (True, False):
         checker = CollisionChecker(model, dof=6, pad=pad, backend="compiled")
+        checker.refresh_static()
         q = np.zeros((2, 6))
         q[1, 1] = 0.5
         checker.collides(q)

@@ -184,5 +184,5 @@ def test_a_slot_that_changes_its_kind_is_refused():
     checker = env.checker
     box = int(env._clutter.ids[0, 0])
     checker.model.geom_type[box] = mujoco.mjtGeom.mjGEOM_SPHERE
-    with pytest.raises(ValueError, match="clutter0_box.*changed its kind"):
+    with pytest.raises(ValueError, match=r"clutter0_box.*changed its kind"):
         checker.refresh_static(env._clutter.geoms)
