@@ -157,3 +157,27 @@ def test_tasks_that_never_repeat_fill_no_template_cache():
         env.reset(seed=seed)
     builder = env.unwrapped._observations
     assert not builder._cache and len(builder._sighted) == 30
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_travel_summaries_are_the_priced_travel(env_id):
+    # Bit for bit the travel step pays (envs.moves._price), least over the free branches.
+    from envs.observations import _travel_summaries
+
+    env = gym.make(env_id, n_waypoints=4)
+    env.reset(seed=5)
+    ladder, scale = env.unwrapped.ladder, float(env.unwrapped.pricer.travel_scale)
+    n, k = ladder.valid.shape
+    free = ladder.valid & ~ladder.endpoint_collision
+    leaving, arriving = np.empty((n, k)), np.empty((n, k))
+    _travel_summaries(ladder.candidates, ladder.valid, free, ladder.pricer.cost.weights, scale,
+                      leaving, arriving)
+    expected_out, expected_in = np.ones((n, k)), np.ones((n, k))
+    for i in range(n - 1):
+        travel, _ = ladder.motion(ladder.candidates[i], i + 1)
+        out = np.where(ladder.valid[i][:, None] & free[i + 1][None], travel, np.inf)
+        into = np.where(free[i][:, None] & ladder.valid[i + 1][None], travel, np.inf)
+        expected_out[i] = np.minimum(out.min(axis=1) / scale, 1.0)
+        expected_in[i + 1] = np.minimum(into.min(axis=0) / scale, 1.0)
+    np.testing.assert_array_equal(leaving, expected_out)
+    np.testing.assert_array_equal(arriving, expected_in)
