@@ -28,6 +28,7 @@ import time
 
 import gymnasium as gym
 import numpy as np
+from env_steps import _loop, _runner
 
 import envs
 from envs.models.compiled import CompiledFilter
@@ -60,39 +61,21 @@ def budget(env_id: str, seconds: float, warmup: float) -> dict:
     base._generator = _timed("task", base._generator)
     base.pricer.task = _timed("candidates", base.pricer.task)
     env.reset(seed=0)
-    rng = np.random.default_rng(0)
+    action = _runner(env, 0)
     counters = base.checker._filter.counters if base.checker._filter is not None else None
-
-    def loop(duration: float) -> tuple[int, int, float, float, float]:
-        steps = episodes = 0
-        in_step = in_reset = 0.0
-        start = time.perf_counter()
-        while time.perf_counter() - start < duration:
-            action = int(rng.choice(np.flatnonzero(base.action_masks())))
-            t0 = time.perf_counter()
-            _, _, terminated, truncated, _ = env.step(action)
-            t1 = time.perf_counter()
-            in_step += t1 - t0
-            steps += 1
-            if terminated or truncated:
-                env.reset()
-                in_reset += time.perf_counter() - t1
-                episodes += 1
-        return steps, episodes, in_step, in_reset, time.perf_counter() - start
-
-    loop(warmup)
+    _loop(env, action, warmup)
     SPENT.clear()
     before = None if counters is None else counters.copy()
-    steps, episodes, in_step, in_reset, total = loop(seconds)
-    per = 1e3 / max(episodes, 1)
+    run = _loop(env, action, seconds)
+    episodes = max(run["resets"], 1)
+    per = 1e3 / episodes
     row = {stage: SPENT.get(stage, 0.0) * per for stage in ("scene", "task", "candidates",
                                                             "collision")}
-    row["rest"] = in_reset * per - row["scene"] - row["task"] - row["candidates"]
-    row["steps"] = in_step * per
-    row["episode"] = total * per
-    row["step/s"] = steps / total
-    row["steps/episode"] = steps / max(episodes, 1)
-    counts = (np.zeros(4) if counters is None else counters - before) / max(episodes, 1)
+    row["rest"] = run["in reset"] * per - row["scene"] - row["task"] - row["candidates"]
+    row["steps"] = run["in step"] * per
+    row["episode"] = run["seconds"] * per
+    row["step/s"], row["steps/episode"] = run["step+reset/s"], run["steps/episode"]
+    counts = (np.zeros(4) if counters is None else counters - before) / episodes
     row["bounded"], row["mujoco"], row["free"] = counts[0], counts[1], counts[3]
     env.close()
     return row

@@ -61,6 +61,8 @@ def _loop(env, action, seconds: float, max_steps: int | None = None) -> dict:
             resets += 1
     total = time.perf_counter() - start
     return {
+        "steps": steps, "resets": resets, "seconds": total, "in step": in_step,
+        "in reset": in_reset,
         "step/s": steps / in_step if in_step else float("nan"),
         "step+reset/s": steps / total,
         "ms/reset": 1e3 * in_reset / max(resets, 1),
