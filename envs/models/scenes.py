@@ -33,6 +33,7 @@ from envs.kinematics.paper_example import RACK_SLOT_OFFSETS_Y, TOOL_ABC_MM, exam
 
 from .builders import STEEL, ArmTree, add_part, add_static_body, compile_spec
 from .collision import DEFAULT_RESOLUTION, CollisionChecker
+from .compiled import _GEOM_BOX, _GEOM_CAPSULE, _GEOM_CYLINDER
 from .scene_file import file_scene
 
 MACHINE_RGBA = (0.30, 0.55, 0.45, 1.0)
@@ -298,12 +299,6 @@ class ClutterSlots:
             model.geom_aabb[self.geoms] = np.concatenate([np.zeros_like(aabb), aabb], axis=1)
 
 
-#: MuJoCo's geom type codes as plain ints (comparing an array with the enum objects
-#: themselves is ~20 times slower).
-_GEOM_BOX, _GEOM_CYLINDER = int(mujoco.mjtGeom.mjGEOM_BOX), int(mujoco.mjtGeom.mjGEOM_CYLINDER)
-_GEOM_CAPSULE = int(mujoco.mjtGeom.mjGEOM_CAPSULE)
-
-
 def _primitive_sizes(types: np.ndarray, half: np.ndarray):
     """MuJoCo ``geom_size``, ``geom_rbound`` and ``geom_aabb`` half-extents of primitive
     geoms spanning ``half`` (x, y, z) (a cylinder's: radius, radius, half-height): a box by
@@ -311,6 +306,7 @@ def _primitive_sizes(types: np.ndarray, half: np.ndarray):
     a cylinder) by radius and the half-length of its straight part."""
     radius, height = half[:, 0], half[:, 2]
     size = np.zeros_like(half)
+    # Plain ints: comparing an array with MuJoCo's enum objects is ~20 times slower.
     box = types == _GEOM_BOX
     cylinder = types == _GEOM_CYLINDER
     capsule = types == _GEOM_CAPSULE
