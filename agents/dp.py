@@ -84,7 +84,7 @@ def _backward(
 
 
 def warm_up() -> None:
-    """Compile (or load from numba's cache) the backward pass (see ``envs.models.compiled``)."""
+    """Compile (or load from numba's on-disk cache) the backward pass."""
     shape = (2, 2, 2)
     _backward(np.zeros(shape), np.zeros(shape, dtype=np.bool_), np.ones((2, 2), dtype=np.bool_),
               np.empty(shape))

@@ -12,9 +12,10 @@ included), after a warm-up of ``--warmup`` seconds, with each stage timed per ep
 - ``reset, rest``: the rest of ``reset`` (observation templates, the first observation);
 - ``steps``: all ``step`` calls of the episode (their path checks, prices, observations);
 - ``collision``: of all the above, the time inside the compiled filter's calls (bounds and
-  the MuJoCo checks it makes; ``envs/models/compiled.py``);
-- per episode, the filter's counts: samples it bounded, MuJoCo checks, and how many of
-  those found no contact (samples free that the bounds could not prove free).
+  the MuJoCo checks it makes; ``envs/models/filter/``);
+- per episode, who decided the samples the filter saw: its bounds (proved free), its
+  witnesses (inner shapes that proved a contact) and MuJoCo (the rest), and how many of
+  MuJoCo's checks found no contact (samples free that the bounds could not prove free).
 
 Numbers depend on the machine and its load: compare rows of one run.
 """
@@ -31,7 +32,7 @@ import numpy as np
 from env_steps import _loop, _runner
 
 import envs
-from envs.models.compiled import CompiledFilter
+from envs.models.filter import COUNTERS, CompiledFilter
 
 #: Stage name -> seconds spent, filled by the timers below.
 SPENT: dict[str, float] = {}
@@ -49,9 +50,10 @@ def _timed(stage: str, function):
     return timed
 
 
-# The filter's two entry points, for every env of this process.
+# The filter's entry points, for every env of this process.
 CompiledFilter.paths = _timed("collision", CompiledFilter.paths)
 CompiledFilter.contacts = _timed("collision", CompiledFilter.contacts)
+CompiledFilter.collide = _timed("collision", CompiledFilter.collide)
 
 
 def budget(env_id: str, seconds: float, warmup: float) -> dict:
@@ -75,8 +77,10 @@ def budget(env_id: str, seconds: float, warmup: float) -> dict:
     row["steps"] = run["in step"] * per
     row["episode"] = run["seconds"] * per
     row["step/s"], row["steps/episode"] = run["step+reset/s"], run["steps/episode"]
-    counts = (np.zeros(4) if counters is None else counters - before) / episodes
-    row["bounded"], row["mujoco"], row["free"] = counts[0], counts[1], counts[3]
+    counts = (np.zeros(len(COUNTERS)) if counters is None else counters - before) / episodes
+    bounded, mujoco, _, found_free, witnessed = counts
+    row["proved free"] = bounded - mujoco - witnessed
+    row["witnessed"], row["mujoco"], row["free"] = witnessed, mujoco, found_free
     env.close()
     return row
 
@@ -93,15 +97,15 @@ def main() -> None:
     print(f"{os.cpu_count()} CPUs; {args.seconds:g} s per id after {args.warmup:g} s of "
           "warm-up; ms per episode unless stated\n")
     print("| id | steps/s with resets | steps/episode | episode | scene | task | candidates "
-          "| reset, rest | steps | of all: collision | samples bounded | MuJoCo checks "
-          "| of them free |")
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+          "| reset, rest | steps | of all: collision | samples proved free | witnessed "
+          "| MuJoCo checks | of them free |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for env_id in ids:
         r = budget(env_id, args.seconds, args.warmup)
         print(f"| {env_id} | {r['step/s']:,.0f} | {r['steps/episode']:.1f} | {r['episode']:.2f} "
               f"| {r['scene']:.2f} | {r['task']:.2f} | {r['candidates']:.2f} | {r['rest']:.2f} "
-              f"| {r['steps']:.2f} | {r['collision']:.2f} | {r['bounded']:,.0f} "
-              f"| {r['mujoco']:,.1f} | {r['free']:,.1f} |", flush=True)
+              f"| {r['steps']:.2f} | {r['collision']:.2f} | {r['proved free']:,.0f} "
+              f"| {r['witnessed']:,.1f} | {r['mujoco']:,.1f} | {r['free']:,.1f} |", flush=True)
 
 
 if __name__ == "__main__":

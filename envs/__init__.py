@@ -97,7 +97,7 @@ def warm_up() -> None:
     once before parallel processes (test workers) start, so they load instead of compiling
     the same kernels at once."""
     from envs.kinematics import compiled as kinematics
-    from envs.models import compiled as collision
+    from envs.models import filter as collision
 
     kinematics.warm_up()
     collision.warm_up()

@@ -181,8 +181,8 @@ class IKBranchEnv(gym.Env):
       moved without a recompile); the dual-arm ids' tasks sweep along a collision-free
       straight path (``relative_motion_free``), so every task has a collision-free solution.
       The older ids stay registered, unchanged, for their published models.
-    - Same ids, same behaviour (session 3): collision checks run through a compiled
-      filter that decides exactly as before (``envs/models/compiled.py``), and the sample
+    - Same ids, same behaviour (2026-12-01): collision checks run through a compiled
+      filter that decides exactly as before (``envs/models/filter/``), and the sample
       grid of a path is summed in joint order for every backend; the published results
       re-evaluate unchanged.
     - v1 (the random-waypoint ids: Cartesian, Cylindrical, Spherical, Anthropomorphic,

@@ -33,9 +33,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 
 from envs.costs import TransitionCost
+from envs.jit import njit
 from envs.kinematics import Arm
 from envs.models import CollisionChecker
 from envs.tasks import Task
@@ -229,7 +229,7 @@ _VALUES = ("reward", "travel", "time", *REWARD_TERMS)
 _FLAGS = ("terminal", "collision", "invalid")
 
 
-@njit(cache=True)
+@njit
 def _price(origins, candidates, valid, waypoints, collision, free_start, n, weights, speeds,
            travel_weight, time_weight, collision_penalty, invalid_penalty, terminate,
            max_cost, values, flags):
@@ -279,7 +279,7 @@ def _price(origins, candidates, valid, waypoints, collision, free_start, n, weig
                 flags[1, w, r, b], flags[2, w, r, b] = hit, invalid
 
 
-@njit(cache=True)
+@njit
 def _onward_travel(here, there, rows, targets, weights, out):
     """``out[a, b]`` (K, K): the travel from ``here[a]`` to ``there[b]`` where ``rows[a]``
     and ``targets[b]``, summed as :func:`_price` sums it (Σ_j w_j|Δq_j| in joint order),
@@ -298,7 +298,7 @@ def _onward_travel(here, there, rows, targets, weights, out):
         rows[a] = reached
 
 
-@njit(cache=True)
+@njit
 def _take_or_try_next(rows, columns, hits, travel, order, tried, out, pending):
     """One round of :meth:`TaskMoves.least_free_travel`: row ``rows[i]`` whose path to
     ``columns[i]`` is free takes that travel; the others move on to their next cheapest

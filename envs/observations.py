@@ -30,8 +30,8 @@ them; a planner's (``receding_dp``) includes the checks it makes itself.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from envs.jit import njit
 from envs.kinematics import Arm
 from envs.moves import TEMPLATE_CACHE_BYTES, TEMPLATE_SIGHTINGS, TaskMoves
 
@@ -39,7 +39,7 @@ from envs.moves import TEMPLATE_CACHE_BYTES, TEMPLATE_SIGHTINGS, TaskMoves
 OBSERVATIONS = ("compact", "ladder")
 
 
-@njit(cache=True)
+@njit
 def _travel_summaries(candidates, valid, free, weights, scale, leaving, arriving):
     """Per waypoint i < N − 1 and branch a, the least weighted travel Σ_j w_j|Δq_j| from
     valid branch a to any *free* branch of waypoint i + 1 (``leaving[i, a]``), and per

@@ -58,7 +58,7 @@ collision geoms).
 
 Backends (identical results: tested equal, and asserted by the benchmark)
 ------------------------------------------------------------------------
-``"compiled"`` (the default; ``"auto"`` picks it) the filter of :mod:`envs.models.compiled`:
+``"compiled"`` (the default; ``"auto"`` picks it) the filter of :mod:`envs.models.filter`:
              numba kernels bound every candidate pair from geometry read off the model and
              prove most samples free; every other sample goes to ``mj_kinematics`` +
              ``mj_collision``, called from the kernel. Same verdicts and first colliding
@@ -90,7 +90,7 @@ import mujoco
 import mujoco.batch
 import numpy as np
 
-from .compiled import DISTANCE_TOLERANCE, CompiledFilter, path_steps
+from .filter import DISTANCE_TOLERANCE, CompiledFilter, path_steps
 
 #: Default Cartesian resolution δ (m): largest displacement of any geom point between
 #: samples, and the clearance below which two geoms count as colliding.
@@ -287,13 +287,18 @@ class CollisionChecker:
             self._ncon = self._batch.bind("ncon")
         return self._batch
 
-    def n_contacts(self, q) -> np.ndarray:
-        """Number of contacts (within the margin) for configurations ``q`` (…, dof)."""
+    def _configurations(self, q) -> np.ndarray:
+        """``q`` (…, dof) as float rows, ``ValueError`` for a wrong last axis or NaN/inf."""
         q = np.asarray(q, dtype=np.float64)
         if q.shape[-1:] != (self.dof,):
             raise ValueError(f"q must have shape (..., {self.dof}), got {q.shape}")
         if not np.all(np.isfinite(q)):
             raise ValueError("q contains NaN or inf")
+        return q
+
+    def n_contacts(self, q) -> np.ndarray:
+        """Number of contacts (within the margin) for configurations ``q`` (…, dof)."""
+        q = self._configurations(q)
         flat = q.reshape(-1, self.dof)
         if self.backend == "loop":
             return self._n_contacts_loop(flat).reshape(q.shape[:-1])
@@ -311,7 +316,12 @@ class CollisionChecker:
         return out.reshape(q.shape[:-1])
 
     def collides(self, q) -> np.ndarray:
-        """(…,) bool: configuration ``q`` (…, dof) has a contact (closer than δ if padded)."""
+        """(…,) bool: configuration ``q`` (…, dof) has a contact (closer than δ if padded).
+        The compiled backend takes a contact its inner shapes prove without counting it."""
+        if self.backend == "compiled":
+            q = self._configurations(q)
+            flat = np.ascontiguousarray(q.reshape(-1, self.dof))
+            return (self._filter.collide(flat) > 0).reshape(q.shape[:-1])
         return self.n_contacts(q) > 0
 
     def collides_loop(self, q) -> np.ndarray:
@@ -427,7 +437,7 @@ class CollisionChecker:
     def rows_collide(self, q: np.ndarray) -> np.ndarray:
         """:meth:`collides` for C-contiguous float64 rows (M, dof) already checked finite."""
         if self.backend == "compiled":
-            return self._filter.contacts(q) > 0
+            return self._filter.collide(q) > 0
         return self.collides(q)
 
     def first_free_rows(self, q: np.ndarray, need: int) -> np.ndarray:
@@ -435,7 +445,7 @@ class CollisionChecker:
         (M, dof), checked finite), fewer if fewer are free: the rows after the ``need``-th
         free one are not checked (the compiled backend stops there)."""
         if self.backend == "compiled":
-            return np.flatnonzero(self._filter.contacts(q, need) == 0)
+            return np.flatnonzero(self._filter.collide(q, need) == 0)
         return np.flatnonzero(~self.collides(q))[:need]
 
     def _ends(self, q0, q1) -> tuple[np.ndarray, np.ndarray]:

@@ -1,6 +1,6 @@
 """MuJoCo's own C functions, callable from numba kernels.
 
-The compiled collision filter (:mod:`envs.models.compiled`) decides most samples of a path
+The compiled collision filter (:mod:`envs.models.filter`) decides most samples of a path
 from geometric bounds, and hands every other sample to the exact check the Python backends
 make: ``mj_kinematics`` then ``mj_collision`` on the checker's ``MjData``, and a look at
 ``d->ncon``. Calling them from inside the kernel (instead of returning to Python per
@@ -14,7 +14,10 @@ sample) is what makes that hand-over cheap. Three pieces:
   numba's on-disk cache stays valid across processes;
 - :func:`ncon_view`, a one-element ``int32`` array aliasing ``d->ncon``, at the offset
   computed from MuJoCo's own struct description (``mujoco.introspect``) and verified
-  against the bindings' ``data.ncon`` before use.
+  against the bindings' ``data.ncon`` before use;
+- :func:`store_float64` and :func:`load_int32`, a store and a load at an address passed at
+  run time, so that one kernel call can write the qpos and read the ncon of several
+  ``MjData`` (a vector env's scenes): :func:`exact_addresses` lists what a kernel needs.
 """
 
 from __future__ import annotations
@@ -66,6 +69,40 @@ def call_model_data(typingctx, function, model, data):
         return context.get_dummy_value()
 
     return signature, codegen
+
+
+@intrinsic
+def store_float64(typingctx, address, index, value):
+    """``((double*) address)[index] = value``; ``address`` an address (``uintp``)."""
+    signature = types.void(types.uintp, types.intp, types.float64)
+
+    def codegen(context, builder, sig, args):
+        pointer = builder.inttoptr(args[0], ir.DoubleType().as_pointer())
+        builder.store(args[2], builder.gep(pointer, [args[1]]))
+        return context.get_dummy_value()
+
+    return signature, codegen
+
+
+@intrinsic
+def load_int32(typingctx, address):
+    """``*(int*) address``; ``address`` an address (``uintp``)."""
+    signature = types.int32(types.uintp)
+
+    def codegen(context, builder, sig, args):
+        return builder.load(builder.inttoptr(args[0], ir.IntType(32).as_pointer()))
+
+    return signature, codegen
+
+
+def exact_addresses(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+    """(6,) ``uint64``: where a kernel writes ``data``'s qpos and reads its ncon (checked
+    by :func:`ncon_view`), ``mj_kinematics``, ``mj_collision``, the model and the data
+    (both must outlive every kernel call given these)."""
+    ncon_view(data)  # verifies the offset on this data
+    return np.array([data.qpos.ctypes.data, data._address + ncon_offset(),
+                     function_address("mj_kinematics"), function_address("mj_collision"),
+                     model._address, data._address], dtype=np.uint64)
 
 
 _SCALARS = {

@@ -33,7 +33,7 @@ from envs.kinematics.paper_example import RACK_SLOT_OFFSETS_Y, TOOL_ABC_MM, exam
 
 from .builders import STEEL, ArmTree, add_part, add_static_body, compile_spec
 from .collision import DEFAULT_RESOLUTION, CollisionChecker
-from .compiled import _GEOM_BOX, _GEOM_CAPSULE, _GEOM_CYLINDER
+from .filter.layout import _GEOM_BOX, _GEOM_CAPSULE, _GEOM_CYLINDER
 from .scene_file import file_scene
 
 MACHINE_RGBA = (0.30, 0.55, 0.45, 1.0)

@@ -123,7 +123,7 @@ def test_a_new_scene_forgets_the_old_verdicts():
 def test_parked_slots_are_skipped_and_come_back_when_laid():
     # A parked slot (100 m below) is beyond every arm geom's reach: its pairs are marked
     # OUT_OF_REACH and skipped; laid again, they are checked again.
-    from envs.models.compiled import OUT_OF_REACH
+    from envs.models.filter.layout import OUT_OF_REACH
 
     env = _env("anthropomorphic")
     scene = env.checker._filter.scene
@@ -137,7 +137,7 @@ def test_parked_slots_are_skipped_and_come_back_when_laid():
     else:
         pytest.fail("no scene with both parked and laid slots")
     parked_geoms = slots[parked]
-    skipped = scene.pair_kind == OUT_OF_REACH
+    skipped = scene.pair_kind[0] == OUT_OF_REACH  # the filter's one scene
     of_parked = np.isin(scene.slot_geom[scene.pair_b], parked_geoms)
     assert skipped[of_parked].all() and of_parked.any()
     assert not skipped[in_slots & ~of_parked].any()  # the laid ones stay near the arm
@@ -148,7 +148,7 @@ def test_parked_slots_are_skipped_and_come_back_when_laid():
 def test_a_refreshed_filter_equals_one_compiled_for_the_laid_scene(arm_name):
     # refresh_static re-reads only the obstacle slots; a scene compiled afresh from the
     # laid model reads everything (static frames from MuJoCo's own kinematics).
-    from envs.models.compiled import compile_scene
+    from envs.models.filter import compile_scene
 
     env = _env(arm_name)
     checker = env.checker
@@ -157,25 +157,28 @@ def test_a_refreshed_filter_equals_one_compiled_for_the_laid_scene(arm_name):
         env._lay_scene(seed)
         fresh = compile_scene(checker.model, env.arm.dof, checker._pairs)
         # (pair_kind: a fresh scene does not skip parked slots; the test above covers that.)
-        for name in ("slot_type", "pair_kind_own", "slot_size", "slot_radius", "slot_geom"):
+        for name in ("slot_type", "pair_kind_own", "slot_size", "slot_radius", "slot_geom",
+                     "slot_inner", "slot_inner_size", "pair_contact"):
             np.testing.assert_array_equal(getattr(scene, name), getattr(fresh, name), name)
         for name in ("slot_pos", "slot_rot", "pair_fixed", "pair_reach"):
             np.testing.assert_allclose(getattr(scene, name), getattr(fresh, name),
                                        rtol=0, atol=1e-12, err_msg=name)
     # Without a list, every static geom is read again (here: after wiping them all).
-    refreshed = {name: getattr(scene, name).copy() for name in ("slot_pos", "slot_rot",
-                                                                 "slot_radius", "pair_reach")}
+    # (Per-scene arrays: the filter's one scene is row 0.)
+    names = ("slot_pos", "slot_rot", "slot_radius", "slot_inner_size", "pair_reach")
+    refreshed = {name: getattr(scene, name)[0].copy() for name in names}
     static = np.flatnonzero(scene.slot_static)
-    scene.slot_pos[static], scene.slot_rot[static], scene.slot_radius[static] = 0.0, 0.0, 0.0
+    for name in names[:-1]:
+        getattr(scene, name)[0, static] = 0.0
     scene.pair_reach[:] = 0.0
     checker.refresh_static()
     with_static = scene.slot_static[scene.pair_b]  # the pairs a static geom's refresh sets
     assert with_static.any()
     for name, values in refreshed.items():
         if name == "pair_reach":
-            values, now = values[with_static], scene.pair_reach[with_static]
+            values, now = values[with_static], scene.pair_reach[0, with_static]
         else:
-            now = getattr(scene, name)
+            now = getattr(scene, name)[0]
         np.testing.assert_array_equal(now, values, err_msg=name)
 
 

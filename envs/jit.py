@@ -1,0 +1,76 @@
+"""numba's ``njit`` for the env's kernels, cached on disk under a hash of their sources.
+
+numba stamps a cached function with its own file only: a kernel that calls a helper from
+another module keeps running the old helper after the helper's file changed. The kernels
+of the collision filter, move pricing, observation assembly and the batched episodes call
+across modules, so they are cached in one directory named by a hash of every module in
+``KERNEL_SOURCES``: any edit to one of them compiles all of them afresh (``make`` does it
+once, ``envs.warm_up``), and no stale code can be loaded. A test checks that every module
+of ``envs`` that compiles kernels is listed (``envs/kinematics`` has its own driver and
+cache, ``envs.kinematics.compiled``).
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import os
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numba
+
+_ROOT = Path(__file__).resolve().parent
+
+#: The files and folders (relative to ``envs/``) whose kernels call each other.
+KERNEL_SOURCES = ("models/filter", "models/native.py", "moves.py", "observations.py")
+
+
+def _sources() -> list[Path]:
+    files: list[Path] = []
+    for name in KERNEL_SOURCES:
+        path = _ROOT / name
+        files += sorted(path.glob("*.py")) if path.is_dir() else [path]
+    return files
+
+
+@functools.cache
+def cache_directory() -> str | None:
+    """The cache directory of this version of the kernels: ``numba-<hash>`` under
+    ``NUMBA_CACHE_DIR`` if set, else under ``envs/__pycache__`` (else the user's cache
+    directory); None if none is writable (kernels are then compiled in every process)."""
+    digest = hashlib.sha256()
+    for source in _sources():
+        digest.update(str(source.relative_to(_ROOT)).encode())
+        digest.update(source.read_bytes())
+    name = f"numba-{digest.hexdigest()[:16]}"
+    roots = [Path(os.environ["NUMBA_CACHE_DIR"])] if os.environ.get("NUMBA_CACHE_DIR") else []
+    roots += [_ROOT / "__pycache__", Path.home() / ".cache" / "ikbranch"]
+    for root in roots:
+        directory = root / name
+        try:
+            directory.mkdir(parents=True, exist_ok=True)
+        except OSError:
+            continue
+        if os.access(directory, os.W_OK):
+            return str(directory)
+    return None
+
+
+def njit(function: Callable | None = None, **options: Any) -> Any:
+    """``numba.njit(cache=True, **options)``, cached in :func:`cache_directory`; usable
+    bare (``@njit``) or with options (``@njit(inline="always")``)."""
+    if function is None:
+        return functools.partial(njit, **options)
+    directory = cache_directory()
+    if directory is None:
+        return numba.njit(**options)(function)
+    # numba reads the cache location when a function is decorated (NUMBA_CACHE_DIR's
+    # setting): set for this decoration only, so other packages keep their own caches.
+    saved = numba.config.CACHE_DIR
+    numba.config.CACHE_DIR = directory
+    try:
+        return numba.njit(cache=True, **options)(function)
+    finally:
+        numba.config.CACHE_DIR = saved

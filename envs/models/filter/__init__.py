@@ -1,0 +1,199 @@
+"""The compiled collision filter: bounds prove samples free, inner shapes prove them in
+contact, MuJoCo decides the rest.
+
+:class:`~envs.models.collision.CollisionChecker`'s ``"compiled"`` backend. It answers the
+same questions as the exact backends (does configuration q touch anything closer than δ;
+which grid sample of a linear path is the first to), with the same answers, but decides
+most samples without MuJoCo. Its rooms:
+
+- :mod:`.layout` — **the model as flat arrays** (:class:`CompiledScene`): the kinematic
+  tree, every collision geom that ``mj_collision`` may test as a *container* that holds it
+  and an *inner* shape that it holds, each inside a bounding sphere, and per pair the
+  lever arms that bound how fast its distance can change (``docs/models.md``). No per-arm
+  code: every model ``envs.models`` builds gets it.
+- :mod:`.shapes` — **one small function per shape pair**: the distance of two containers
+  as a lower bound (sphere/capsule/box/half-space pairs in closed form, box–box by
+  separating axes, which never overestimates), of two inner shapes exactly.
+- :mod:`.tree` — **forward kinematics of the tree** in the kernel, slot frames, path
+  samples and how fast they move.
+- :mod:`.kernels` — **the checks**. At a sample, first every pair's bounding spheres, then
+  the containers of the pairs that could matter: a sample at which every pair is provably
+  farther than its contact margin (δ, plus ``DISTANCE_TOLERANCE``) is free, exactly as
+  ``mj_collision`` would find it; a pair whose inner shapes are closer than its margin
+  (less ``WITNESS_TOLERANCE``) proves a contact MuJoCo's colliders report; any other
+  sample goes to ``mj_kinematics`` + ``mj_collision`` on the checker's ``MjData``, called
+  from the kernel (:mod:`envs.models.native`). So every verdict and every first colliding
+  sample is MuJoCo's. A path's grid samples (t_i = i/n, as in the module docstring of
+  :mod:`~envs.models.collision`) are visited in raked order (the middle of every
+  unresolved interval, breadth first), and a free sample's bounds prove its neighbours on
+  both sides free (conservative advancement: a pair at distance d approaching at rate
+  ≤ L stays farther than the margin for |t − t_i| < (d − margin)/L). A verdict-only call
+  stops at the first contact found; a first-sample call keeps resolving the samples
+  before it.
+- this module — :class:`CompiledFilter`, the kernels bound to one checker, and
+  :class:`FilterStack`, the filters of several scenes of one model checked in one call
+  (a vector env's sub-envs).
+
+The kernels are compiled once per machine into numba's on-disk cache (``envs.jit``;
+``warm_up`` does it ahead), loaded in well under a second afterwards.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+
+import mujoco
+import numpy as np
+
+from .. import native
+from .kernels import COUNTERS, check_configurations, check_paths, path_steps
+from .layout import (
+    DISTANCE_TOLERANCE,
+    PER_SCENE,
+    WITNESS_TOLERANCE,
+    CompiledScene,
+    compile_scene,
+    container,
+    inner,
+    refresh_static,
+)
+
+
+# --------------------------------------------------------------------------- the filter
+class CompiledFilter:
+    """The kernels bound to one checker's model and ``MjData`` (which must outlive it).
+
+    ``model`` carries the checker's margins; ``pairs`` are its candidate pairs.
+    Configurations are the leading ``dof`` qpos entries (the rest stay at ``qpos0``).
+    """
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, dof: int,
+                 pairs: np.ndarray) -> None:
+        self._model, self._data = model, data
+        #: Totals since construction, named by ``COUNTERS`` (benchmarks and tests read them).
+        self.counters = np.zeros(len(COUNTERS), dtype=np.int64)
+        self._bind(compile_scene(model, dof, pairs), native.exact_addresses(model, data)[None])
+
+    def _bind(self, scene: CompiledScene, exact: np.ndarray) -> None:
+        """Read ``scene`` (one scene) and ``exact`` (its (1, 6) MuJoCo addresses) from now on."""
+        self.scene, self._exact = scene, exact
+        # The kernels' leading arguments, built once (the arrays are refreshed in place).
+        self._scene_arguments = (scene.tree, scene.geometry, scene.motion, exact, _ONE_SCENE)
+
+    def refresh_static(self, geoms: np.ndarray | None = None) -> None:
+        """Follow changed static geoms of the model (see :func:`refresh_static`)."""
+        refresh_static(self.scene, self._model, geoms)
+
+    def contacts(self, rows: np.ndarray, need: int = 0) -> np.ndarray:
+        """(M,) contact counts at configurations ``rows`` (M, dof): 0 where proven free,
+        else MuJoCo's count. ``need`` > 0: only until ``need`` free rows are found (the
+        rest −1, unchecked)."""
+        out = np.empty(len(rows), dtype=np.int64)
+        check_configurations(*self._scene_arguments, rows, need, False, out, self.counters)
+        return out
+
+    def collide(self, rows: np.ndarray, need: int = 0) -> np.ndarray:
+        """(M,) 0 where configuration ``rows[i]`` is free, > 0 where it is in contact (a
+        count where MuJoCo decided, 1 where inner shapes proved it); ``need`` as in
+        :meth:`contacts`."""
+        out = np.empty(len(rows), dtype=np.int64)
+        check_configurations(*self._scene_arguments, rows, need, True, out, self.counters)
+        return out
+
+    def paths(self, start_rows: np.ndarray, end_rows: np.ndarray, steps: np.ndarray,
+              first: bool) -> np.ndarray:
+        """(M,) grid index of a colliding sample per path (−1: free), the lowest with
+        ``first``; ``start_rows`` (M or 1, dof), ``end_rows`` (M, dof), ``steps`` (M,)."""
+        out = np.empty(len(end_rows), dtype=np.int64)
+        check_paths(*self._scene_arguments, start_rows, end_rows, steps, first, out,
+                    self.counters)
+        return out
+
+
+#: The scene index of every row of a filter of its own.
+_ONE_SCENE = np.zeros(1, dtype=np.int64)
+
+
+class FilterStack:
+    """The filters of several scenes of one model as one (a vector env's sub-envs, each
+    with its own clutter): their per-scene arrays (``layout.PER_SCENE``) stacked, so that
+    one kernel call checks rows and paths of every scene, each row naming its scene.
+
+    Each filter joins the stack: from then on it reads and refreshes its row of the
+    stack's arrays, so a new clutter laid in one sub-env is what the stack checks too.
+    """
+
+    def __init__(self, filters: Sequence[CompiledFilter]) -> None:
+        if not filters:
+            raise ValueError("a filter stack needs at least one filter")
+        first = filters[0].scene
+        for other in filters[1:]:
+            if not _same_model(first, other.scene):
+                raise ValueError("a filter stack needs filters of one model")
+        stacked = {name: np.ascontiguousarray(np.concatenate(
+            [getattr(f.scene, name) for f in filters])) for name in PER_SCENE}
+        self.scene = dataclasses.replace(first, **stacked)
+        self._exact = np.ascontiguousarray(np.concatenate([f._exact for f in filters]))
+        self.size = len(filters)
+        for index, member in enumerate(filters):
+            member._bind(dataclasses.replace(member.scene, **{
+                name: array[index : index + 1] for name, array in stacked.items()}),
+                self._exact[index : index + 1])
+        self.counters = np.zeros(len(COUNTERS), dtype=np.int64)
+        self._scene_arguments = (self.scene.tree, self.scene.geometry, self.scene.motion,
+                                 self._exact)
+
+    def collide(self, scenes: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """(M,) 0 where configuration ``rows[i]`` is free in scene ``scenes[i]``, > 0 where
+        it is in contact (:meth:`CompiledFilter.collide`)."""
+        out = np.empty(len(rows), dtype=np.int64)
+        check_configurations(*self._scene_arguments, scenes, rows, 0, True, out,
+                             self.counters)
+        return out
+
+    def paths(self, scenes: np.ndarray, start_rows: np.ndarray, end_rows: np.ndarray,
+              steps: np.ndarray, first: bool) -> np.ndarray:
+        """:meth:`CompiledFilter.paths` of paths each in its scene ``scenes[m]``."""
+        out = np.empty(len(end_rows), dtype=np.int64)
+        check_paths(*self._scene_arguments, scenes, start_rows, end_rows, steps, first, out,
+                    self.counters)
+        return out
+
+
+def _same_model(one: CompiledScene, other: CompiledScene) -> bool:
+    """Two scenes of one model: equal in every field but the per-scene ones."""
+    for item in dataclasses.fields(one):
+        if item.name in PER_SCENE:
+            continue
+        if not np.array_equal(getattr(one, item.name), getattr(other, item.name)):
+            return False
+    return True
+
+
+def warm_up() -> None:
+    """Compile (or load from numba's on-disk cache) every kernel with the argument types
+    the checker passes, on a small model: ``make`` runs it once before the tests, so
+    parallel test processes load the cache instead of compiling each."""
+    from ..collision import CollisionChecker
+    from ..model import build_model
+
+    model = build_model("anthropomorphic", "random_clutter")
+    for pad in (True, False):
+        checker = CollisionChecker(model, dof=6, pad=pad, backend="compiled")
+        checker.refresh_static()
+        q = np.zeros((2, 6))
+        q[1, 1] = 0.5
+        checker.collides(q)
+        checker.check_paths(q[0], q[1])
+        checker.paths_collide(q[0], q)
+        checker.paths_collide(q, q[::-1])
+
+
+if __name__ == "__main__":
+    warm_up()
+
+
+__all__ = ["COUNTERS", "DISTANCE_TOLERANCE", "WITNESS_TOLERANCE", "CompiledFilter",
+           "CompiledScene", "FilterStack", "compile_scene", "container", "inner", "path_steps",
+           "refresh_static", "warm_up"]

@@ -1,0 +1,413 @@
+"""The kernels: the free step around a sample, configuration checks and path checks.
+
+A sample is decided by whichever proof holds: bounds that keep every pair farther than
+its margin prove it free (and, along a path, its neighbours within the free step); inner
+shapes of one pair closer than its margin prove it in contact (``layout.inner``); MuJoCo's
+``mj_kinematics`` + ``mj_collision`` decide the rest, called from the kernel. Every kernel
+takes the scene stack's arrays and, per row or path, the scene it belongs to (a filter of
+its own is a stack of one).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from envs.jit import njit
+
+from .. import native
+from .layout import PLANE, SPHERE
+from .shapes import _bound_pair, _inner_distance
+from .tree import _axis_growth, _forward, _local_speed, _path_rates, _path_sample, _place_slots
+
+#: What :func:`_sample_step` returns besides a free step (≥ 0).
+UNDECIDED, CONTACT = -1.0, -2.0
+#: The filter's counters, in order: samples bounded, MuJoCo checks, exact pair bounds
+#: computed, MuJoCo checks that found no contact (samples free that the bounds could not
+#: prove free), samples whose inner shapes proved a contact.
+COUNTERS = ("bounded", "mujoco", "pair bounds", "mujoco found free", "witnessed")
+
+
+@njit(inline="always")
+def _sample_step(tree, geometry, qpos, xpos, xmat, wpos, wrot, rates, coarse, cap, counters,
+                 motion, local, witness):
+    """The free step around the sample ``qpos``: the largest s ≤ ``cap`` (in path
+    parameter t) such that every pair stays farther than its margin for |t − t_i| ≤ s, from
+    lower bounds only; ``CONTACT`` if a pair's inner shapes prove it in contact (only
+    with ``witness``), ``UNDECIDED`` if neither proof holds (MuJoCo must decide).
+
+    Bounding spheres first (``coarse``: their step per pair); exact container bounds only
+    for pairs whose sphere step is below the best step found so far, the nearest first.
+    A static pair's step is the larger of two valid ones: at the global rate (lever arms
+    over all configurations), and, with ``local`` = (dq, growth, speeds), from the
+    configuration itself: a moving slot's points move at most V0 + W·|t − t_i| per unit t
+    (V0 from its actual distances to the hinge axes, W how fast later joints can change
+    those), so within s they cover at most V0·s + W·s²/2. ``local`` None: configurations
+    only (no step needed beyond 0).
+    """
+    (body_parent, body_pos, body_rot, body_jntadr, body_jntnum, body_flags, jnt_type,
+     jnt_qposadr, jnt_pos, jnt_axis, jnt_axis_code, qpos0) = tree
+    (slot_body, slot_static, slot_pos, slot_rot, slot_type, slot_size, slot_radius,
+     pair_a, pair_b, pair_margin, _, pair_reach, pair_kind, pair_fixed, slot_pairs,
+     slot_inner, slot_inner_size, pair_contact) = geometry
+    _forward(body_parent, body_pos, body_rot, body_jntadr, body_jntnum, body_flags,
+             jnt_type, jnt_qposadr, jnt_pos, jnt_axis, jnt_axis_code, qpos0, qpos, xpos,
+             xmat)
+    _place_slots(slot_body, slot_static, slot_pos, slot_rot, xpos, xmat, wpos, wrot)
+    if local is not None:
+        local[2][:] = -1.0  # per-slot V0, computed when a pair needs it
+    # Bounding spheres (a half-space for a plane) farther apart than the pair can close
+    # within ``cap`` cannot limit the step: no sqrt, no division for them. The others are
+    # kept, with their sphere step, in ``coarse`` (pair, step) rows.
+    survivors, nearest, nearest_step = _sphere_steps(slot_body, slot_pairs, wpos, pair_b,
+                                                     pair_reach, pair_kind, pair_fixed, rates,
+                                                     cap, coarse)
+    best = cap
+    if nearest_step >= best:
+        return best
+    # Finer bounds, the nearest pair first (it usually sets ``best``), then every pair whose
+    # coarser bound could still limit the step: a's bounding sphere against a static b's
+    # container, then the two containers.
+    for visit in range(-1, survivors):
+        row = nearest if visit < 0 else visit
+        if (visit >= 0 and row == nearest) or coarse[row, 1] >= best:
+            continue
+        k = int(coarse[row, 0])
+        a, b = pair_a[k], pair_b[k]
+        ca, cb, rb, sb = _centre(wpos, a), _centre(wpos, b), _rotation(wrot, b), _size(slot_size, b)
+        sphere = -math.inf
+        if slot_static[b] and slot_type[b] != PLANE:
+            sphere = _bound_pair(SPHERE, ca, rb, (slot_radius[a], 0.0, 0.0), slot_type[b], cb,
+                                 rb, sb) - pair_margin[k]
+            if sphere > 0.0 and (rates[k] == 0.0 or sphere >= best * rates[k]):
+                continue
+        counters[2] += 1
+        # Both are lower bounds of the same distance (the sphere holds a's container).
+        gap = max(sphere, _bound_pair(slot_type[a], ca, _rotation(wrot, a), _size(slot_size, a),
+                                      slot_type[b], cb, rb, sb) - pair_margin[k])
+        if not gap > 0.0:
+            if not witness:
+                return UNDECIDED
+            return _witnessed(coarse, survivors, pair_a, pair_b, pair_contact, slot_inner,
+                              slot_inner_size, wpos, wrot)
+        step = _rate_step(gap, rates[k])
+        if local is not None and slot_static[b] and step < best:
+            dq, growth, speeds = local
+            if speeds[a] < 0.0:
+                speeds[a] = _local_speed(a, motion, xpos, xmat, jnt_pos, jnt_axis, jnt_type,
+                                         wpos, slot_radius[a], dq)
+            step = _local_step(step, gap, speeds[a], growth[a])
+        if step < best:
+            best = step
+    return best
+
+
+@njit(inline="always")
+def _witnessed(coarse, survivors, pair_a, pair_b, pair_contact, slot_inner, slot_inner_size,
+               wpos, wrot):
+    """``CONTACT`` if the inner shapes of a pair whose bounding spheres may be within its
+    margin (a ``coarse`` row with step −1) are closer than the pair's contact distance,
+    else ``UNDECIDED``."""
+    for row in range(survivors):
+        if coarse[row, 1] >= 0.0:
+            continue
+        k = int(coarse[row, 0])
+        limit = pair_contact[k]
+        if limit == -math.inf:
+            continue
+        a, b = pair_a[k], pair_b[k]
+        distance = _inner_distance(slot_inner[a], _centre(wpos, a), _rotation(wrot, a),
+                                   _size(slot_inner_size, a), slot_inner[b], _centre(wpos, b),
+                                   _rotation(wrot, b), _size(slot_inner_size, b))
+        if distance < limit:
+            return CONTACT
+    return UNDECIDED
+
+
+@njit(inline="always")
+def _rate_step(gap, rate):
+    """How far (in t) a pair ``gap`` (> 0) beyond its margin stays so, closing at ``rate``:
+    unlimited for a pair that cannot approach."""
+    return gap / rate if rate > 0.0 else math.inf
+
+
+@njit(inline="always")
+def _sphere_steps(slot_body, slot_pairs, wpos, pair_b, pair_reach, pair_kind, pair_fixed,
+                  rates, cap, coarse):
+    """The bounding-sphere pass of :func:`_sample_step`: every pair that could limit the
+    step within ``cap`` as a ``coarse`` row (pair, sphere step; −1 where the spheres may
+    be within the margin). Returns (rows written, the row of the smallest step, that
+    step; −1 and inf if none)."""
+    survivors, nearest, nearest_step = 0, -1, math.inf
+    for a in range(len(slot_body)):
+        first, stop = slot_pairs[a], slot_pairs[a + 1]
+        if first == stop:
+            continue
+        ax, ay, az = wpos[a, 0], wpos[a, 1], wpos[a, 2]
+        for k in range(first, stop):
+            reach = pair_reach[k]
+            limit = reach + rates[k] * cap
+            kind = pair_kind[k]
+            if kind == 3:  # OUT_OF_REACH
+                continue
+            if kind == 1:  # a fixed half-space
+                height = (pair_fixed[k, 3] * (ax - pair_fixed[k, 0])
+                          + pair_fixed[k, 4] * (ay - pair_fixed[k, 1])
+                          + pair_fixed[k, 5] * (az - pair_fixed[k, 2]))
+                if height >= limit:
+                    continue
+                gap = height - reach
+            else:
+                if kind == 0:  # a fixed sphere
+                    dx, dy, dz = ax - pair_fixed[k, 0], ay - pair_fixed[k, 1], az - pair_fixed[k, 2]
+                else:  # slot b's sphere
+                    b = pair_b[k]
+                    dx, dy, dz = ax - wpos[b, 0], ay - wpos[b, 1], az - wpos[b, 2]
+                squared = dx * dx + dy * dy + dz * dz
+                if squared >= limit * limit:
+                    continue
+                gap = math.sqrt(squared) - reach
+            step = _rate_step(gap, rates[k]) if gap > 0.0 else -1.0
+            coarse[survivors, 0], coarse[survivors, 1] = k, step
+            if step < nearest_step:
+                nearest, nearest_step = survivors, step
+            survivors += 1
+    return survivors, nearest, nearest_step
+
+
+@njit(inline="always")
+def _local_step(step, gap, v0, w):
+    """A static pair's step from the configuration itself: a moving slot whose points move
+    at most V0 + W·|t − t_i| per unit t covers at most V0·s + W·s²/2 within s, so the pair
+    keeps ``gap`` for s < 2·gap/(V0 + √(V0² + 2·W·gap)); the larger of that and ``step``
+    (the step at the global rate)."""
+    root = math.sqrt(v0 * v0 + 2.0 * w * gap)
+    if v0 + root > 0.0:
+        step = max(step, 2.0 * gap / (v0 + root))
+    return step
+
+
+@njit(inline="always")
+def _centre(wpos, s):
+    return (wpos[s, 0], wpos[s, 1], wpos[s, 2])
+
+
+@njit(inline="always")
+def _size(size, s):
+    return (size[s, 0], size[s, 1], size[s, 2])
+
+
+@njit(inline="always")
+def _rotation(wrot, s):
+    return (wrot[s, 0, 0], wrot[s, 0, 1], wrot[s, 0, 2], wrot[s, 1, 0], wrot[s, 1, 1],
+            wrot[s, 1, 2], wrot[s, 2, 0], wrot[s, 2, 1], wrot[s, 2, 2])
+
+
+@njit
+def _exact_contacts(qpos, exact):
+    """``mj_kinematics`` + ``mj_collision`` at ``qpos`` on a checker's ``MjData``
+    (``exact``: the addresses of its qpos and ncon, of the two functions, of the model and
+    the data): the contact count."""
+    for j in range(len(qpos)):
+        native.store_float64(exact[0], j, qpos[j])
+    native.call_model_data(exact[2], exact[4], exact[5])
+    native.call_model_data(exact[3], exact[4], exact[5])
+    return native.load_int32(exact[1])
+
+
+@njit
+def _work(tree, geometry):
+    """Scratch arrays of one kernel call: body frames (static ones preset), slot frames
+    (static ones set per scene: :func:`_enter`), per-pair rates and sphere steps."""
+    body_xpos, body_xmat = tree[-2], tree[-1]
+    slot_pos, slot_rot, pair_a = geometry[2], geometry[3], geometry[7]
+    return (body_xpos.copy(), body_xmat.copy(), slot_pos[0].copy(), slot_rot[0].copy(),
+            np.ones(len(pair_a)), np.empty((len(pair_a), 2)))
+
+
+@njit(inline="always")
+def _scene(geometry, e):
+    """The geometry of scene ``e`` of the stack: its row of every per-scene array."""
+    (slot_body, slot_static, slot_pos, slot_rot, slot_type, slot_size, slot_radius, pair_a,
+     pair_b, pair_margin, pair_lever, pair_reach, pair_kind, pair_fixed, slot_pairs,
+     slot_inner, slot_inner_size, pair_contact) = geometry
+    return (slot_body, slot_static, slot_pos[e], slot_rot[e], slot_type, slot_size[e],
+            slot_radius[e], pair_a, pair_b, pair_margin, pair_lever, pair_reach[e],
+            pair_kind[e], pair_fixed[e], slot_pairs, slot_inner[e], slot_inner_size[e],
+            pair_contact)
+
+
+@njit(inline="always")
+def _enter(scene, wpos, wrot):
+    """Set the static slots' world frames of ``scene`` (one :func:`_scene`) in the slot
+    frame arrays: they change only between scenes."""
+    slot_static, slot_pos, slot_rot = scene[1], scene[2], scene[3]
+    for s in range(len(slot_static)):
+        if slot_static[s]:
+            for i in range(3):
+                wpos[s, i] = slot_pos[s, i]
+                for j in range(3):
+                    wrot[s, i, j] = slot_rot[s, i, j]
+
+
+@njit
+def _fill_qpos(qpos, qpos0, row):
+    """``qpos`` = ``qpos0`` with its leading entries replaced by ``row``."""
+    for j in range(len(qpos0)):
+        qpos[j] = row[j] if j < len(row) else qpos0[j]
+
+
+@njit
+def path_steps(start_rows, end_rows, lever, resolution, out):
+    """``out[m]`` = n = max(⌈D/δ − 1e−12⌉, 1) grid intervals of path m, where
+    D = Σ_j lever_j·|Δq_j| summed in joint order (the one definition every backend uses,
+    so a path has the same grid whether it is checked alone or in a batch). A start
+    array with one row serves every end row."""
+    for m in range(end_rows.shape[0]):
+        start = start_rows[0] if start_rows.shape[0] == 1 else start_rows[m]
+        bound = 0.0
+        for j in range(end_rows.shape[1]):
+            bound += lever[j] * abs(end_rows[m, j] - start[j])
+        n = math.ceil(bound / resolution - 1e-12)
+        out[m] = n if n > 1 else 1
+
+
+@njit
+def check_configurations(tree, geometry, motion, exact, scenes, rows, need, verdict, out,
+                         counters):
+    """``out[i]`` for configuration ``rows[i]`` (its leading qpos entries; the rest stay at
+    ``qpos0``) in scene ``scenes[i]`` of the stack (one entry: every row's scene): 0 where
+    the bounds prove it free, else MuJoCo's contact count, or with ``verdict`` 1 where
+    inner shapes prove a contact. ``need`` > 0: rows are checked in order until ``need``
+    free ones are found; the rows after are not checked (``out`` −1). ``counters``:
+    :data:`COUNTERS`, added to."""
+    xpos, xmat, wpos, wrot, rates, coarse = _work(tree, geometry)
+    kinematic = tree[:12]
+    qpos0 = tree[11]
+    qpos = np.empty(len(qpos0))
+    free = 0
+    entered = -1
+    for i in range(rows.shape[0]):
+        if need > 0 and free >= need:
+            out[i] = -1
+            continue
+        e = scenes[0] if len(scenes) == 1 else scenes[i]
+        scene = _scene(geometry, e)
+        if e != entered:
+            _enter(scene, wpos, wrot)
+            entered = e
+        _fill_qpos(qpos, qpos0, rows[i])
+        counters[0] += 1
+        step = _sample_step(kinematic, scene, qpos, xpos, xmat, wpos, wrot, rates, coarse,
+                            0.0, counters, motion, None, verdict)
+        if step >= 0.0:
+            out[i] = 0
+        elif step == CONTACT:
+            counters[4] += 1
+            out[i] = 1
+        else:
+            counters[1] += 1
+            out[i] = _exact_contacts(qpos, exact[e])
+            if out[i] == 0:
+                counters[3] += 1
+        if out[i] == 0:
+            free += 1
+
+
+@njit
+def check_paths(tree, geometry, motion, exact, scenes, start_rows, end_rows, steps, first,
+                out, counters):
+    """``out[m]``: a grid index i of path m (q(t) = q0 + (i/n)(q1 − q0), n = ``steps[m]``;
+    leading qpos entries, the rest at ``qpos0``) in scene ``scenes[m]`` of the stack (one
+    entry: every path's scene) whose sample MuJoCo finds in contact, −1 if none has one.
+    With ``first`` it is the lowest such index; otherwise the first one found (the verdict
+    is the same). A start array with one row serves every end row.
+
+    Samples are visited in raked order: the middle of every unresolved interval of grid
+    indices, breadth first; a sample the bounds prove free clears every index within its
+    free step on both sides, a sample whose inner shapes prove a contact is in contact,
+    any other is checked by MuJoCo."""
+    xpos, xmat, wpos, wrot, rates, coarse = _work(tree, geometry)
+    kinematic = tree[:12]
+    qpos0 = tree[11]
+    pair_lever = geometry[10]
+    nq = pair_lever.shape[1]
+    dof = end_rows.shape[1]
+    delta, qpos, start = np.zeros(nq), np.empty(nq), np.empty(nq)
+    slot_lever, slot_moved, _, jnt_down = motion
+    jnt_type = tree[6]
+    dq, growth, speeds = np.zeros(nq), np.zeros(len(slot_lever)), np.empty(len(slot_lever))
+    local = (dq, growth, speeds)
+    size = _queue_size(steps)
+    queue_lo, queue_hi = np.empty(size, np.int64), np.empty(size, np.int64)
+    entered = -1
+    for m in range(len(steps)):
+        n = steps[m]
+        e = scenes[0] if len(scenes) == 1 else scenes[m]
+        scene = _scene(geometry, e)
+        if e != entered:
+            _enter(scene, wpos, wrot)
+            entered = e
+        _fill_qpos(start, qpos0, start_rows[0] if start_rows.shape[0] == 1 else start_rows[m])
+        _path_rates(start, end_rows, m, pair_lever, delta, rates, dq)
+        _axis_growth(slot_lever, slot_moved, jnt_down, jnt_type, dq, dof, growth)
+        # The raked search stays here: as an inlined helper taking these arrays (numba
+        # reference-counts them per call) it measured ~7 % slower on short paths.
+        found = n + 1
+        head, tail = 0, 1  # circular queue of intervals [lo, hi]
+        queue_lo[0], queue_hi[0] = 0, n
+        while head != tail:
+            lo, hi = queue_lo[head], queue_hi[head]
+            head = (head + 1) % size
+            if hi >= found:
+                hi = found - 1
+            if lo > hi:
+                continue
+            mid = (lo + hi) // 2
+            fraction = mid / n
+            _path_sample(qpos, start, delta, fraction, dof)
+            counters[0] += 1
+            step = _sample_step(kinematic, scene, qpos, xpos, xmat, wpos, wrot, rates,
+                                coarse, max(mid - lo, hi - mid) / n, counters, motion, local,
+                                True)
+            reach = 0
+            if step < 0.0:
+                if step == CONTACT:
+                    counters[4] += 1
+                    hit = True
+                else:
+                    counters[1] += 1
+                    hit = _exact_contacts(qpos, exact[e]) > 0
+                    if not hit:
+                        counters[3] += 1  # the bounds could not prove a free sample free
+                if hit:
+                    found = mid
+                    if not first:
+                        break
+                    tail = _push_interval(queue_lo, queue_hi, tail, lo, mid - 1)
+                    continue
+            else:
+                scaled = step * n
+                reach = n if scaled >= n else int(scaled)
+            tail = _push_interval(queue_lo, queue_hi, tail, lo, mid - reach - 1)
+            tail = _push_interval(queue_lo, queue_hi, tail, mid + reach + 1, hi)
+        out[m] = found if found <= n else -1
+
+
+@njit(inline="always")
+def _queue_size(steps):
+    """Room for the interval queue of every path: its grid points, plus two."""
+    size = 2
+    for m in range(len(steps)):
+        size = max(size, steps[m] + 2)
+    return size
+
+
+@njit(inline="always")
+def _push_interval(queue_lo, queue_hi, tail, lo, hi):
+    """Queue the interval [lo, hi] unless it is empty; returns the new tail."""
+    if lo <= hi:
+        queue_lo[tail], queue_hi[tail] = lo, hi
+        tail = (tail + 1) % len(queue_lo)
+    return tail

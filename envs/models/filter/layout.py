@@ -1,0 +1,601 @@
+"""Model -> flat arrays: what the filter's kernels read of a compiled MuJoCo model.
+
+:func:`compile_scene` reads the kinematic tree (hinge and slide joints, body offsets) and
+every collision geom that ``mj_collision`` may test
+(:func:`~envs.models.collision.candidate_pairs`) as a *container* that holds it (spheres,
+capsules and boxes as themselves, a convex mesh as its bounding box, a cylinder as both
+the capsule and the box around it, an ellipsoid as its box, a plane as its half-space),
+each inside a bounding sphere, and per pair the lever arms that bound how fast its
+distance can change (per geom, over all configurations; ``docs/models.md``). No per-arm
+code: every model ``envs.models`` builds gets it. :func:`refresh_static` follows static
+geoms that moved (the per-episode clutter).
+
+Beside the container, each geom has an *inner* shape that it holds (:func:`inner`): itself
+where it is a sphere, capsule, box, a mesh whose hull is its bounding box, or a plane; the
+capsule inside a cylinder, the sphere inside an ellipsoid. Two inner shapes closer than a
+pair's margin (less ``WITNESS_TOLERANCE``) prove the pair in contact: MuJoCo's colliders
+report it (``docs/models.md`` names the colliders this was established for; a pair of
+primitive boxes, whose collider misses some contacts inside the margin, gets no witness).
+
+Several scenes of one model (the sub-envs of a vector env, each with its own clutter)
+share everything but the static geoms' places and sizes: those fields (``PER_SCENE``)
+carry a leading scene axis, of length 1 for a filter of its own, and a filter that joins
+a stack (``envs.models.filter.FilterStack``) reads and writes its row of the stack's.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from envs.jit import njit
+
+#: Reported distances are trusted only up to this (m): a pair counts as proven free only
+#: when its lower bound exceeds the contact margin by this much.
+DISTANCE_TOLERANCE = 1e-6
+
+#: Inner shapes are trusted up to this (m): a pair whose inner shapes come closer than its
+#: contact margin less this is in contact as MuJoCo reports contacts.
+WITNESS_TOLERANCE = 1e-5
+
+#: A pair (kind) whose static partner lies beyond the moving geom's reach: skipped.
+OUT_OF_REACH = 3
+#: Container shapes (codes shared with the kernels).
+SPHERE, CAPSULE, BOX, CYLINDER, PLANE, UNBOUNDED = 0, 1, 2, 3, 4, 5
+#: The inner shape of a geom that has none the kernels can measure.
+NO_INNER = -1
+#: Joint type codes, MuJoCo's own.
+_SLIDE, _HINGE = int(mujoco.mjtJoint.mjJNT_SLIDE), int(mujoco.mjtJoint.mjJNT_HINGE)
+
+
+@dataclass(frozen=True, eq=False)
+class CompiledScene:
+    """Everything the kernels read, as flat arrays (see the module docstring).
+
+    Tree: ``body_*`` (nbody), ``jnt_*`` (njnt), ``qpos0``. Geoms ("slots": only those of
+    candidate pairs): body, shape frame in the body frame (for static slots: in the world,
+    fixed), container type, size, bounding radius about the shape centre. Pairs: the two
+    slots (a static one always second), the contact margin, and per joint the lever arm
+    that bounds the rate of change of the pair's distance (m per rad, 1 for a slide).
+    """
+
+    body_parent: np.ndarray
+    body_pos: np.ndarray
+    body_rot: np.ndarray
+    body_jntadr: np.ndarray
+    body_jntnum: np.ndarray
+    body_flags: np.ndarray
+    jnt_type: np.ndarray
+    jnt_qposadr: np.ndarray
+    jnt_pos: np.ndarray
+    jnt_axis: np.ndarray
+    jnt_axis_code: np.ndarray
+    qpos0: np.ndarray
+    body_xpos: np.ndarray
+    body_xmat: np.ndarray
+    slot_geom: np.ndarray
+    slot_body: np.ndarray
+    slot_inner: np.ndarray
+    slot_inner_size: np.ndarray
+    pair_contact: np.ndarray
+    slot_static: np.ndarray
+    slot_pos: np.ndarray
+    slot_rot: np.ndarray
+    slot_type: np.ndarray
+    slot_size: np.ndarray
+    slot_radius: np.ndarray
+    pair_a: np.ndarray
+    pair_b: np.ndarray
+    pair_kind: np.ndarray
+    pair_fixed: np.ndarray
+    slot_pairs: np.ndarray
+    pair_kind_own: np.ndarray
+    slot_extent: np.ndarray
+    pair_margin: np.ndarray
+    pair_lever: np.ndarray
+    pair_reach: np.ndarray
+    slot_lever: np.ndarray
+    slot_moved: np.ndarray
+    jnt_body: np.ndarray
+    jnt_down: np.ndarray
+
+    @property
+    def tree(self) -> tuple:
+        """The kinematic tree as the kernels take it (static body frames last)."""
+        return (self.body_parent, self.body_pos, self.body_rot, self.body_jntadr,
+                self.body_jntnum, self.body_flags, self.jnt_type, self.jnt_qposadr,
+                self.jnt_pos, self.jnt_axis, self.jnt_axis_code, self.qpos0,
+                self.body_xpos, self.body_xmat)
+
+    @property
+    def motion(self) -> tuple:
+        """What the local (configuration-dependent) speed bound needs: per slot its lever
+        arms and the joints that move it, per joint its body and the joints after it."""
+        return self.slot_lever, self.slot_moved, self.jnt_body, self.jnt_down
+
+    @property
+    def geometry(self) -> tuple:
+        """Slots and pairs as the kernels take them."""
+        return (self.slot_body, self.slot_static, self.slot_pos, self.slot_rot,
+                self.slot_type, self.slot_size, self.slot_radius, self.pair_a, self.pair_b,
+                self.pair_margin, self.pair_lever, self.pair_reach, self.pair_kind,
+                self.pair_fixed, self.slot_pairs, self.slot_inner, self.slot_inner_size,
+                self.pair_contact)
+
+
+#: The fields of :class:`CompiledScene` that differ between scenes of one model (static
+#: geoms' places and sizes): a leading scene axis.
+PER_SCENE = ("slot_pos", "slot_rot", "slot_size", "slot_radius", "slot_inner",
+             "slot_inner_size", "pair_fixed", "pair_reach", "pair_kind")
+
+
+# ------------------------------------------------------------------------------ geometry
+#: MuJoCo geom type codes (numba reads them as constants).
+_GEOM_PLANE, _GEOM_SPHERE = int(mujoco.mjtGeom.mjGEOM_PLANE), int(mujoco.mjtGeom.mjGEOM_SPHERE)
+_GEOM_CAPSULE, _GEOM_BOX = int(mujoco.mjtGeom.mjGEOM_CAPSULE), int(mujoco.mjtGeom.mjGEOM_BOX)
+_GEOM_CYLINDER = int(mujoco.mjtGeom.mjGEOM_CYLINDER)
+_GEOM_ELLIPSOID = int(mujoco.mjtGeom.mjGEOM_ELLIPSOID)
+_GEOM_MESH = int(mujoco.mjtGeom.mjGEOM_MESH)
+
+
+def container(model: mujoco.MjModel, geom: int) -> tuple[int, np.ndarray, np.ndarray, float]:
+    """The container of ``geom``: (type, size (3,), centre offset in the geom frame (3,),
+    bounding radius about that centre). The container holds every point of the geom as
+    MuJoCo collides it (a mesh as its convex hull)."""
+    kind, size, offset, radius = _container(int(model.geom_type[geom]), model.geom_size[geom],
+                                            model.geom_aabb[geom])
+    return int(kind), np.array(size), np.array(offset), float(radius)
+
+
+@njit
+def _container(geom_type, size, aabb):
+    """:func:`container` from the geom's MuJoCo type, ``geom_size`` and ``geom_aabb`` rows:
+    (type, size, offset, radius) with size and offset as 3-tuples."""
+    s0, s1, s2 = size[0], size[1], size[2]
+    zero = (0.0, 0.0, 0.0)
+    if geom_type == _GEOM_SPHERE:
+        return SPHERE, (s0, s1, s2), zero, s0
+    if geom_type == _GEOM_CAPSULE:
+        return CAPSULE, (s0, s1, s2), zero, s0 + s1
+    if geom_type == _GEOM_BOX:
+        return BOX, (s0, s1, s2), zero, math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+    if geom_type == _GEOM_CYLINDER:
+        return CYLINDER, (s0, s1, s2), zero, math.hypot(s0, s1)
+    if geom_type == _GEOM_ELLIPSOID:
+        return BOX, (s0, s1, s2), zero, max(s0, max(s1, s2))
+    if geom_type == _GEOM_MESH:
+        # geom_aabb: the (centre, half-size) box of the mesh's vertices in the geom frame,
+        # so it holds their convex hull, which is what MuJoCo collides.
+        h0 = aabb[3] * (1.0 + 1e-12) + 1e-12
+        h1 = aabb[4] * (1.0 + 1e-12) + 1e-12
+        h2 = aabb[5] * (1.0 + 1e-12) + 1e-12
+        return BOX, (h0, h1, h2), (aabb[0], aabb[1], aabb[2]), math.sqrt(h0 * h0 + h1 * h1
+                                                                        + h2 * h2)
+    if geom_type == _GEOM_PLANE:
+        return PLANE, (s0, s1, s2), zero, math.inf
+    return UNBOUNDED, (s0, s1, s2), zero, math.inf
+
+
+def inner(model: mujoco.MjModel, geom: int) -> tuple[int, np.ndarray]:
+    """The inner shape of ``geom`` (module docstring): (kind, size (3,)) in the frame of its
+    container, ``NO_INNER`` for a mesh whose hull is not its bounding box, an unknown kind
+    or a plane that moves."""
+    box_mesh = False
+    if model.geom_type[geom] == _GEOM_MESH:
+        box_mesh = _hull_is_box(model, geom)
+    kind, size = _inner(int(model.geom_type[geom]), model.geom_size[geom], model.geom_aabb[geom],
+                        box_mesh)
+    return int(kind), np.array(size)
+
+
+def _hull_is_box(model: mujoco.MjModel, geom: int) -> bool:
+    """The mesh of ``geom`` is the eight corners of its bounding box (``geom_aabb``, in the
+    geom frame, computed by MuJoCo from these very vertices): its hull is that box."""
+    mesh = model.geom_dataid[geom]
+    start, count = model.mesh_vertadr[mesh], model.mesh_vertnum[mesh]
+    vertices = model.mesh_vert[start : start + count].astype(np.float64)
+    centre, half = model.geom_aabb[geom][:3], model.geom_aabb[geom][3:]
+    offsets = vertices - centre
+    if count != 8 or not np.all(np.abs(np.abs(offsets) - half) <= 1e-12 * (1.0 + half)):
+        return False
+    return len({tuple(np.sign(row)) for row in offsets}) == 8
+
+
+@njit
+def _inner(geom_type, size, aabb, box_mesh):
+    """:func:`inner` from the geom's MuJoCo type, ``geom_size``, ``geom_aabb`` and whether a
+    mesh's hull is its box: (kind, size as a 3-tuple)."""
+    s0, s1, s2 = size[0], size[1], size[2]
+    if geom_type == _GEOM_SPHERE:
+        return SPHERE, (s0, 0.0, 0.0)
+    if geom_type == _GEOM_CAPSULE:
+        return CAPSULE, (s0, s1, 0.0)
+    if geom_type == _GEOM_BOX:
+        return BOX, (s0, s1, s2)
+    if geom_type == _GEOM_CYLINDER:  # the capsule of its radius, or a sphere in a disc
+        if s1 >= s0:
+            return CAPSULE, (s0, s1 - s0, 0.0)
+        return SPHERE, (s1, 0.0, 0.0)
+    if geom_type == _GEOM_ELLIPSOID:
+        return SPHERE, (min(s0, min(s1, s2)), 0.0, 0.0)
+    if geom_type == _GEOM_MESH and box_mesh:
+        return BOX, (aabb[3], aabb[4], aabb[5])
+    if geom_type == _GEOM_PLANE:
+        return PLANE, (s0, s1, s2)
+    return NO_INNER, (0.0, 0.0, 0.0)
+
+
+def _quat_to_mat(quat) -> np.ndarray:
+    mat = np.empty((3, 3))
+    _quat_matrix(np.asarray(quat, dtype=np.float64), mat)
+    return mat
+
+
+@njit
+def _quat_matrix(q, out):
+    """``out`` (3, 3) = the rotation of unit quaternion ``q`` (w, x, y, z), as
+    ``mju_quat2Mat`` computes it."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    if w == 1.0 and x == 0.0 and y == 0.0 and z == 0.0:
+        for i in range(3):
+            for j in range(3):
+                out[i, j] = 1.0 if i == j else 0.0
+        return
+    ww, wx, wy, wz = w * w, w * x, w * y, w * z
+    xx, xy, xz, yy, yz, zz = x * x, x * y, x * z, y * y, y * z, z * z
+    # Summed as MuJoCo's build does (found by comparison), so its frames come out the same.
+    out[0, 0] = (ww - yy) + (xx - zz)
+    out[1, 1] = (ww + yy) - (xx + zz)
+    out[2, 2] = (ww - yy) - (xx - zz)
+    out[0, 1], out[0, 2] = 2.0 * (xy - wz), 2.0 * (xz + wy)
+    out[1, 0], out[1, 2] = 2.0 * (xy + wz), 2.0 * (yz - wx)
+    out[2, 0], out[2, 1] = 2.0 * (xz - wy), 2.0 * (yz + wx)
+
+
+def _ancestors(model: mujoco.MjModel, body: int) -> list[int]:
+    chain = []
+    while body != 0:
+        chain.append(body)
+        body = int(model.body_parentid[body])
+    return chain
+
+
+def _body_frame(model: mujoco.MjModel, body: int) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation and offset of ``body``'s frame in its parent's (before its joints act)."""
+    return _quat_to_mat(model.body_quat[body]), np.array(model.body_pos[body], dtype=float)
+
+
+def _levers(model: mujoco.MjModel, body: int, centre: np.ndarray, radius: float,
+            dof: int) -> np.ndarray:
+    """(njnt,) bound on the speed of any point within ``radius`` of ``centre`` (in
+    ``body``'s frame) per unit speed of each joint, over all configurations: 1 for a slide,
+    0 for joints that do not move the body, and for a hinge the largest distance of such a
+    point from the hinge's axis. That distance is the part of the chain held rigidly in
+    the hinge's own body (up to the next body with joints), measured perpendicular to the
+    axis, plus every length after it (body offsets, slide strokes, anchors off a body's
+    origin, the point's radius): the triangle inequality. Joints from ``dof`` on never
+    move in checks (they stay at ``qpos0``)."""
+    chain = list(reversed(_ancestors(model, body)))  # root-side first, ``body`` last
+    levers = np.zeros(model.njnt)
+    for index, owner in enumerate(chain):
+        first, count = int(model.body_jntadr[owner]), int(model.body_jntnum[owner])
+        for j in range(first, first + count):
+            if model.jnt_type[j] == _SLIDE:
+                levers[j] = 1.0
+                continue
+            # In the owner's frame: the fixed part reaches from the anchor to the origin
+            # of the next jointed body (or to the point itself), the rest is any length.
+            rotation, offset = np.eye(3), np.zeros(3)
+            rest = 0.0 if j == first + count - 1 else math.inf  # several joints: no bound
+            tip = None
+            for later in chain[index + 1 :]:
+                turn, shift = _body_frame(model, later)
+                offset, rotation = offset + rotation @ shift, rotation @ turn
+                if model.body_jntnum[later]:
+                    tip = offset
+                    rest += _reach_after(model, chain[chain.index(later) :], centre, radius,
+                                         dof)
+                    break
+            if tip is None:
+                tip = offset + rotation @ centre
+                rest += radius
+            axis = model.jnt_axis[j] / np.linalg.norm(model.jnt_axis[j])
+            arm_vector = tip - model.jnt_pos[j]
+            perpendicular = arm_vector - axis * (axis @ arm_vector)
+            levers[j] = float(np.linalg.norm(perpendicular)) + rest
+    return levers
+
+
+def _reach_after(model: mujoco.MjModel, bodies: list[int], centre: np.ndarray,
+                 radius: float, dof: int) -> float:
+    """Bound on the distance of any point within ``radius`` of ``centre`` (in the last
+    body's frame) from the origin of ``bodies[0]`` (before its joints act), over all
+    configurations of the joints of ``bodies``."""
+    reach = float(np.linalg.norm(centre)) + radius
+    for b in bodies:
+        if b != bodies[0]:
+            reach += float(np.linalg.norm(model.body_pos[b]))
+        first, count = int(model.body_jntadr[b]), int(model.body_jntnum[b])
+        for j in range(first, first + count):
+            if j >= dof:
+                continue
+            if model.jnt_type[j] == _SLIDE:
+                if not model.jnt_limited[j]:
+                    return math.inf
+                adr = model.jnt_qposadr[j]
+                reach += float(np.max(np.abs(model.jnt_range[j] - model.qpos0[adr])))
+            else:
+                reach += 2.0 * float(np.linalg.norm(model.jnt_pos[j]))  # an off-origin hinge
+    return reach
+
+
+def _moved_by(model: mujoco.MjModel, body: int) -> np.ndarray:
+    moved = np.zeros(model.njnt, dtype=bool)
+    for b in _ancestors(model, body):
+        first, count = int(model.body_jntadr[b]), int(model.body_jntnum[b])
+        moved[first : first + count] = True
+    return moved
+
+
+def _joints_after(model: mujoco.MjModel) -> np.ndarray:
+    """(njnt, njnt) bool: joint i acts after joint j on the way out to the tips (a later
+    joint of j's body, or a joint of a body below it): what moves points relative to j's
+    axis."""
+    after = np.zeros((model.njnt, model.njnt), dtype=bool)
+    for i in range(model.njnt):
+        body = int(model.jnt_bodyid[i])
+        for j in range(model.njnt):
+            owner = int(model.jnt_bodyid[j])
+            after[j, i] = (owner == body and i > j) or (
+                owner != body and owner in _ancestors(model, body))
+    return after
+
+
+def compile_scene(model: mujoco.MjModel, dof: int, pairs: np.ndarray) -> CompiledScene:
+    """The flat arrays of ``model`` (margins as set on it) for the geom ``pairs`` (P, 2)
+    that ``mj_collision`` may test. ``ValueError`` for what the filter cannot bound
+    (joints other than hinges and slides, explicit contact pairs, mocap bodies, margin
+    overrides)."""
+    _check_supported(model)
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    static_body = model.body_weldid == 0
+
+    geoms = np.unique(pairs) if len(pairs) else np.zeros(0, dtype=np.int64)
+    slot_of = {int(g): s for s, g in enumerate(geoms)}
+    n_slots = len(geoms)
+    slot_body = model.geom_bodyid[geoms].astype(np.int64)
+    slot_static = static_body[slot_body]
+    slot_pos, slot_rot = np.zeros((n_slots, 3)), np.zeros((n_slots, 3, 3))
+    slot_type = np.zeros(n_slots, dtype=np.int64)
+    slot_size, slot_radius = np.zeros((n_slots, 3)), np.zeros(n_slots)
+    slot_inner, inner_size = np.full(n_slots, NO_INNER, dtype=np.int64), np.zeros((n_slots, 3))
+    levers, moved = np.zeros((n_slots, model.njnt)), np.zeros((n_slots, model.njnt), dtype=bool)
+    extent = np.full(n_slots, np.inf)  # moving slots: farthest reach from the world origin
+    for s, g in enumerate(geoms):
+        kind, size, offset, radius = container(model, int(g))
+        slot_type[s], slot_size[s], slot_radius[s] = kind, size, radius
+        slot_inner[s], inner_size[s] = inner(model, int(g))
+        if slot_static[s]:  # fixed in the world: its frame once, from MuJoCo
+            rot = data.geom_xmat[g].reshape(3, 3).copy()
+            slot_rot[s], slot_pos[s] = rot, data.geom_xpos[g] + rot @ offset
+            continue
+        if kind in (PLANE, UNBOUNDED):
+            slot_type[s] = UNBOUNDED  # a moving plane: left to MuJoCo at every sample
+            slot_inner[s] = NO_INNER
+        rot = _quat_to_mat(model.geom_quat[g])
+        slot_rot[s], slot_pos[s] = rot, model.geom_pos[g] + rot @ offset
+        levers[s] = _levers(model, int(slot_body[s]), slot_pos[s],
+                            radius if np.isfinite(radius) else 0.0, dof)
+        moved[s] = _moved_by(model, int(slot_body[s]))
+        chain = list(reversed(_ancestors(model, int(slot_body[s]))))
+        extent[s] = float(np.linalg.norm(model.body_pos[chain[0]])) + _reach_after(
+            model, chain, slot_pos[s], radius if np.isfinite(radius) else 0.0, dof)
+
+    # Pairs grouped by their moving slot a (the kernel loads a's frame once per group), a
+    # static solid partner first, then a plane, then a moving one: (a, kind) order.
+    ends = [(slot_of[int(g1)], slot_of[int(g2)]) for g1, g2 in pairs.tolist()]
+    ends = [(b, a) if slot_static[a] else (a, b) for a, b in ends]
+    kinds = [2 if not slot_static[b] else (1 if slot_type[b] == PLANE else 0) for _, b in ends]
+    order = sorted(range(len(ends)), key=lambda k: (ends[k][0], kinds[k]))
+    pair_a = np.array([ends[k][0] for k in order], dtype=np.int64)
+    pair_b = np.array([ends[k][1] for k in order], dtype=np.int64)
+    pair_kind = np.array([kinds[k] for k in order], dtype=np.int64)
+    margin = (model.geom_margin[pairs].sum(axis=1)[order] if len(pairs) else np.zeros(0))
+    pair_lever = np.zeros((len(pair_a), model.njnt))
+    pair_fixed = np.zeros((len(pair_a), 6))  # a static partner's centre (and plane normal)
+    for k, (a, b) in enumerate(zip(pair_a, pair_b, strict=True)):
+        if slot_static[b]:
+            pair_lever[k] = levers[a]
+            pair_fixed[k, :3], pair_fixed[k, 3:] = slot_pos[b], slot_rot[b][:, 2]
+        else:  # joints that move both turn the pair rigidly together and drop out
+            only_a, only_b = moved[a] & ~moved[b], moved[b] & ~moved[a]
+            pair_lever[k] = np.where(only_a, levers[a], 0.0) + np.where(only_b, levers[b], 0.0)
+    pair_lever[:, dof:] = 0.0
+    pair_contact = np.where(_witnessed(model, geoms, pair_a, pair_b, slot_inner),
+                            margin - WITNESS_TOLERANCE, -math.inf)
+    slot_pairs = np.searchsorted(pair_a, np.arange(n_slots + 1)).astype(np.int64)
+    body_rot = np.array([_quat_to_mat(q) for q in model.body_quat])
+    body_flags = np.where(static_body, 1, 0) | np.where(
+        np.all(body_rot == np.eye(3), axis=(1, 2)), 2, 0)
+    axis_code = np.full(model.njnt, 6, dtype=np.int64)
+    for j, axis in enumerate(model.jnt_axis):
+        for code, unit in enumerate(np.vstack([np.eye(3), -np.eye(3)])):
+            if np.array_equal(axis, unit):
+                axis_code[j] = code
+    scene = dict(
+        body_parent=model.body_parentid.astype(np.int64),
+        body_pos=np.array(model.body_pos, dtype=np.float64),
+        body_rot=body_rot,
+        body_jntadr=model.body_jntadr.astype(np.int64),
+        body_jntnum=model.body_jntnum.astype(np.int64),
+        body_flags=body_flags.astype(np.int64),
+        jnt_type=model.jnt_type.astype(np.int64),
+        jnt_qposadr=model.jnt_qposadr.astype(np.int64),
+        jnt_pos=np.array(model.jnt_pos, dtype=np.float64),
+        jnt_axis=np.array(model.jnt_axis, dtype=np.float64),
+        jnt_axis_code=axis_code,
+        qpos0=np.array(model.qpos0, dtype=np.float64),
+        body_xpos=np.where(static_body[:, None], data.xpos, 0.0),
+        body_xmat=np.where(static_body[:, None, None], data.xmat.reshape(-1, 3, 3), 0.0),
+        slot_geom=geoms.astype(np.int64),
+        slot_body=slot_body,
+        slot_static=slot_static,
+        slot_pos=slot_pos,
+        slot_rot=slot_rot,
+        slot_type=slot_type,
+        slot_size=slot_size,
+        slot_radius=slot_radius,
+        pair_a=pair_a,
+        pair_b=pair_b,
+        pair_kind=pair_kind,
+        pair_fixed=pair_fixed,
+        slot_pairs=slot_pairs,
+        pair_kind_own=pair_kind.copy(),
+        slot_extent=extent,
+        pair_margin=margin + DISTANCE_TOLERANCE,
+        pair_lever=pair_lever,
+        # Bounding radii plus margin: a plane (always ``b``) adds no radius.
+        pair_reach=(slot_radius[pair_a] + np.where(slot_type[pair_b] == PLANE, 0.0,
+                                                   slot_radius[pair_b])
+                    + margin + DISTANCE_TOLERANCE),
+        slot_lever=np.where(np.arange(model.njnt) < dof, levers, 0.0),
+        slot_moved=moved & (np.arange(model.njnt) < dof),
+        jnt_body=model.jnt_bodyid.astype(np.int64),
+        jnt_down=_joints_after(model),
+        slot_inner=slot_inner,
+        slot_inner_size=inner_size,
+        pair_contact=pair_contact,
+    )
+    for name in PER_SCENE:  # one scene
+        scene[name] = np.ascontiguousarray(scene[name][None])
+    return CompiledScene(**scene)
+
+
+def _check_supported(model: mujoco.MjModel) -> None:
+    """``ValueError`` for what the filter cannot bound (see :func:`compile_scene`)."""
+    if not np.isin(model.jnt_type, (_SLIDE, _HINGE)).all() or model.nq != model.njnt:
+        raise ValueError("the compiled filter supports hinge and slide joints only")
+    if model.npair or model.nmocap:
+        raise ValueError("the compiled filter supports no explicit contact pairs or mocap bodies")
+    if model.opt.enableflags & mujoco.mjtEnableBit.mjENBL_OVERRIDE:
+        raise ValueError("the compiled filter needs per-geom margins (no contact override)")
+
+
+def _witnessed(model: mujoco.MjModel, geoms: np.ndarray, pair_a: np.ndarray,
+               pair_b: np.ndarray, slot_inner: np.ndarray) -> np.ndarray:
+    """(P,) bool: a pair whose inner shapes may prove a contact: both have one, their
+    collider reports every contact inside the margin (not two primitive boxes:
+    google-deepmind/mujoco#2471), and contacts are enabled at all."""
+    off = mujoco.mjtDisableBit.mjDSBL_CONTACT | mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+    if model.opt.disableflags & off:
+        return np.zeros(len(pair_a), dtype=bool)
+    kind = model.geom_type[geoms]
+    boxes = (kind[pair_a] == _GEOM_BOX) & (kind[pair_b] == _GEOM_BOX)
+    return (slot_inner[pair_a] != NO_INNER) & (slot_inner[pair_b] != NO_INNER) & ~boxes
+
+
+def refresh_static(scene: CompiledScene, model: mujoco.MjModel,
+                   geoms: np.ndarray | None = None) -> None:
+    """Re-read static geoms of ``scene`` (its one scene) from ``model`` after their sizes
+    or places changed (the per-episode clutter): their world frames, containers, inner
+    shapes and bounding radii, and what the pairs keep of them. ``geoms``: the geom ids
+    that changed (default every static one). The tree, the candidate pairs and every
+    moving geom are unchanged, so nothing else is recomputed."""
+    if len(scene.slot_pos) != 1:
+        raise ValueError("refresh_static refreshes the scene of one filter (a stack's row)")
+    every = geoms is None
+    geoms = np.zeros(0, dtype=np.int64) if every else np.asarray(geoms, dtype=np.int64)
+    changed = _refresh_static(
+        every, geoms, scene.slot_geom, scene.slot_body, scene.slot_static, scene.slot_type,
+        scene.slot_size[0], scene.slot_radius[0], scene.slot_pos[0], scene.slot_rot[0],
+        scene.slot_inner[0], scene.slot_inner_size[0], scene.body_xpos, scene.body_xmat,
+        scene.pair_a, scene.pair_b, scene.pair_margin, scene.pair_kind_own, scene.slot_extent,
+        scene.pair_fixed[0], scene.pair_reach[0], scene.pair_kind[0],
+        model.geom_type, model.geom_size, model.geom_aabb, model.geom_quat, model.geom_pos)
+    if changed >= 0:
+        name = model.geom(int(scene.slot_geom[changed])).name
+        raise ValueError(f"geom {name!r} changed its kind")
+
+
+@njit
+def _refresh_static(every, geoms, slot_geom, slot_body, slot_static, slot_type, slot_size,
+                    slot_radius, slot_pos, slot_rot, slot_inner, slot_inner_size, body_xpos,
+                    body_xmat, pair_a, pair_b, pair_margin, pair_kind_own, slot_extent,
+                    pair_fixed, pair_reach, pair_kind, geom_type, geom_size, geom_aabb,
+                    geom_quat, geom_pos):
+    """:func:`refresh_static` on the arrays: returns −1, or the slot whose geom changed
+    its container kind (left half-refreshed: the caller raises)."""
+    refreshed = np.zeros(len(slot_geom), dtype=np.bool_)
+    own = np.empty((3, 3))
+    for s in range(len(slot_geom)):
+        if not slot_static[s]:
+            continue
+        g = slot_geom[s]
+        if not (every or _listed(geoms, g)):
+            continue
+        kind, size, offset, radius = _container(geom_type[g], geom_size[g], geom_aabb[g])
+        if kind != slot_type[s]:
+            return s
+        refreshed[s] = True
+        # A mesh keeps its vertices, so whether its hull is its box does not change.
+        box_mesh = geom_type[g] == _GEOM_MESH and slot_inner[s] == BOX
+        inner_kind, inner_size = _inner(geom_type[g], geom_size[g], geom_aabb[g], box_mesh)
+        slot_inner[s] = inner_kind
+        # A static geom's frame: its (static) body's, known since construction, times its own.
+        body = slot_body[s]
+        _quat_matrix(geom_quat[g], own)
+        for i in range(3):
+            slot_size[s, i] = size[i]
+            slot_inner_size[s, i] = inner_size[i]
+            for j in range(3):
+                slot_rot[s, i, j] = (body_xmat[body, i, 0] * own[0, j]
+                                     + body_xmat[body, i, 1] * own[1, j]
+                                     + body_xmat[body, i, 2] * own[2, j])
+        slot_radius[s] = radius
+        for i in range(3):
+            slot_pos[s, i] = (body_xpos[body, i]
+                              + (body_xmat[body, i, 0] * geom_pos[g, 0]
+                                 + body_xmat[body, i, 1] * geom_pos[g, 1]
+                                 + body_xmat[body, i, 2] * geom_pos[g, 2])
+                              + (slot_rot[s, i, 0] * offset[0] + slot_rot[s, i, 1] * offset[1]
+                                 + slot_rot[s, i, 2] * offset[2]))
+    _refresh_pairs(refreshed, slot_pos, slot_rot, slot_type, slot_radius, pair_a, pair_b,
+                   pair_margin, pair_kind_own, slot_extent, pair_fixed, pair_reach, pair_kind)
+    return -1
+
+
+@njit
+def _listed(geoms, g):
+    for i in range(len(geoms)):
+        if geoms[i] == g:
+            return True
+    return False
+
+
+@njit
+def _refresh_pairs(refreshed, slot_pos, slot_rot, slot_type, slot_radius, pair_a, pair_b,
+                   pair_margin, pair_kind_own, slot_extent, pair_fixed, pair_reach, pair_kind):
+    """What the pairs keep of their ``refreshed`` static slots (see :func:`refresh_static`)."""
+    for k in range(len(pair_b)):
+        b = pair_b[k]
+        if not refreshed[b]:
+            continue
+        x, y, z = slot_pos[b, 0], slot_pos[b, 1], slot_pos[b, 2]
+        pair_fixed[k, 0], pair_fixed[k, 1], pair_fixed[k, 2] = x, y, z
+        pair_fixed[k, 3], pair_fixed[k, 4], pair_fixed[k, 5] = (slot_rot[b, 0, 2],
+                                                                slot_rot[b, 1, 2],
+                                                                slot_rot[b, 2, 2])
+        # Bounding radii plus margin: a plane adds no radius.
+        partner = 0.0 if slot_type[b] == PLANE else slot_radius[b]
+        pair_reach[k] = slot_radius[pair_a[k]] + partner + pair_margin[k]
+        # A static geom beyond everything a's points can ever reach (a parked obstacle
+        # slot) cannot come within the margin: its pairs are skipped (kind 3) until it
+        # moves back.
+        gap = math.sqrt(x * x + y * y + z * z) - partner - pair_margin[k]
+        far = pair_kind_own[k] == 0 and gap > slot_extent[pair_a[k]]
+        pair_kind[k] = OUT_OF_REACH if far else pair_kind_own[k]
+

@@ -1,0 +1,371 @@
+"""Shape pairs: the distance of two shapes, in closed form, as bound or as witness.
+
+One small function per pair of shapes (sphere, capsule, box, half-space). Applied to two
+*containers* (a cylinder as the better of its capsule and its box) every value is a lower
+bound of the geoms' distance, so a pair proven farther than its margin is free
+(:func:`_bound_pair`). Applied to two *inner* shapes, which the geoms hold, the value is
+at least the geoms' distance, so a pair proven closer than its margin is in contact
+(:func:`_inner_distance`): sphere, capsule, box and half-space pairs are measured exactly;
+two boxes by their edges (:func:`_box_box_distance`).
+"""
+
+from __future__ import annotations
+
+import math
+
+from envs.jit import njit
+
+from .layout import BOX, CAPSULE, CYLINDER, NO_INNER, PLANE, SPHERE, UNBOUNDED
+
+
+@njit(inline="always")
+def _clamp(x, lo, hi):
+    return lo if x < lo else (hi if x > hi else x)
+
+
+@njit
+def _point_segment_sq(px, py, pz, ax, ay, az, bx, by, bz):
+    dx, dy, dz = bx - ax, by - ay, bz - az
+    length = dx * dx + dy * dy + dz * dz
+    t = 0.0
+    if length > 0.0:
+        t = _clamp(((px - ax) * dx + (py - ay) * dy + (pz - az) * dz) / length, 0.0, 1.0)
+    ex, ey, ez = ax + t * dx - px, ay + t * dy - py, az + t * dz - pz
+    return ex * ex + ey * ey + ez * ez
+
+
+@njit
+def _segment_segment_sq(p1x, p1y, p1z, q1x, q1y, q1z, p2x, p2y, p2z, q2x, q2y, q2z):
+    """Squared distance of two segments (Ericson, Real-Time Collision Detection, 5.1.9)."""
+    d1x, d1y, d1z = q1x - p1x, q1y - p1y, q1z - p1z
+    d2x, d2y, d2z = q2x - p2x, q2y - p2y, q2z - p2z
+    rx, ry, rz = p1x - p2x, p1y - p2y, p1z - p2z
+    a = d1x * d1x + d1y * d1y + d1z * d1z
+    e = d2x * d2x + d2y * d2y + d2z * d2z
+    f = d2x * rx + d2y * ry + d2z * rz
+    eps = 1e-18
+    if a <= eps and e <= eps:
+        return rx * rx + ry * ry + rz * rz
+    if a <= eps:
+        s, t = 0.0, _clamp(f / e, 0.0, 1.0)
+    else:
+        c = d1x * rx + d1y * ry + d1z * rz
+        if e <= eps:
+            t, s = 0.0, _clamp(-c / a, 0.0, 1.0)
+        else:
+            b = d1x * d2x + d1y * d2y + d1z * d2z
+            denom = a * e - b * b
+            s = _clamp((b * f - c * e) / denom, 0.0, 1.0) if denom > eps * a * e else 0.0
+            t = (b * s + f) / e
+            if t < 0.0:
+                t, s = 0.0, _clamp(-c / a, 0.0, 1.0)
+            elif t > 1.0:
+                t, s = 1.0, _clamp((b - c) / a, 0.0, 1.0)
+    ex = p1x + d1x * s - (p2x + d2x * t)
+    ey = p1y + d1y * s - (p2y + d2y * t)
+    ez = p1z + d1z * s - (p2z + d2z * t)
+    return ex * ex + ey * ey + ez * ez
+
+
+@njit
+def _to_box(px, py, pz, c, r):
+    """World point -> box frame (``c`` centre, ``r`` rotation as a row-major 9-tuple,
+    world = r @ local)."""
+    dx, dy, dz = px - c[0], py - c[1], pz - c[2]
+    return (r[0] * dx + r[3] * dy + r[6] * dz,
+            r[1] * dx + r[4] * dy + r[7] * dz,
+            r[2] * dx + r[5] * dy + r[8] * dz)
+
+
+@njit
+def _point_box(px, py, pz, c, r, h0, h1, h2):
+    """Distance from a world point to a solid box of half-sizes h (0 inside)."""
+    x, y, z = _to_box(px, py, pz, c, r)
+    ex = max(abs(x) - h0, 0.0)
+    ey = max(abs(y) - h1, 0.0)
+    ez = max(abs(z) - h2, 0.0)
+    return math.sqrt(ex * ex + ey * ey + ez * ez)
+
+
+@njit
+def _piece_minimum(lo, hi, s0, s1, s2, d0, d1, d2, h0, h1, h2):
+    """Least squared box distance of p(t) = s + t·d over [lo, hi], a piece on which no
+    coordinate crosses a face plane: a quadratic qa t² + qb t + qc, minimised exactly."""
+    mid = 0.5 * (lo + hi)
+    qa = qb = qc = 0.0
+    for k in range(3):
+        if k == 0:
+            s, d, h = s0, d0, h0
+        elif k == 1:
+            s, d, h = s1, d1, h1
+        else:
+            s, d, h = s2, d2, h2
+        x = s + mid * d
+        if x > h:
+            offset = s - h
+        elif x < -h:
+            offset = s + h
+        else:
+            continue
+        qa += d * d
+        qb += 2.0 * d * offset
+        qc += offset * offset
+    if qa > 0.0:
+        t = _clamp(-qb / (2.0 * qa), lo, hi)
+    else:
+        t = lo if qb > 0.0 else hi
+    return (qa * t + qb) * t + qc
+
+
+@njit(inline="always")
+def _box_axis(axis, s0, s1, s2, d0, d1, d2, h0, h1, h2):
+    """(start, direction, half-size) of the segment and the box along box axis ``axis``."""
+    if axis == 0:
+        return s0, d0, h0
+    if axis == 1:
+        return s1, d1, h1
+    return s2, d2, h2
+
+
+@njit(inline="always")
+def _face_crossing(side, s, d, h):
+    """(crosses, t): whether the segment s + t·d, 0 < t < 1, crosses the face plane at
+    ``side``·h (``side`` ±1) strictly inside, and where; a parallel segment never does."""
+    if d == 0.0:
+        return False, 0.0
+    t = (side * h - s) / d
+    if not 0.0 < t < 1.0:
+        return False, t
+    return True, t
+
+
+@njit(inline="always")
+def _insert_sorted(t, c0, c1, c2, c3, c4, c5):
+    """The sorted six-tuple c0 ≤ … ≤ c5 with ``t`` inserted in place of its largest entry
+    (unused slots hold 2.0, above every breakpoint): one bubble pass, no allocation."""
+    if t < c5:
+        c5 = t
+    if c5 < c4:
+        c4, c5 = c5, c4
+    if c4 < c3:
+        c3, c4 = c4, c3
+    if c3 < c2:
+        c2, c3 = c3, c2
+    if c2 < c1:
+        c1, c2 = c2, c1
+    if c1 < c0:
+        c0, c1 = c1, c0
+    return c0, c1, c2, c3, c4, c5
+
+
+@njit(inline="always")
+def _piece_end(piece, count, c0, c1, c2, c3, c4, c5):
+    """Where piece ``piece`` of the segment ends: breakpoint ``piece`` of the sorted
+    c0..c5, or t = 1 for the last piece (``piece`` == ``count``)."""
+    if piece >= count:
+        return 1.0
+    if piece == 0:
+        return c0
+    if piece == 1:
+        return c1
+    if piece == 2:
+        return c2
+    if piece == 3:
+        return c3
+    if piece == 4:
+        return c4
+    return c5
+
+
+@njit
+def _segment_box(ax, ay, az, bx, by, bz, c, r, h0, h1, h2):
+    """Exact distance from the segment a–b to a solid box: the squared distance along the
+    segment is a sum of clamped quadratics, smooth between the breakpoints where a
+    coordinate crosses a face plane; each piece is minimised in closed form."""
+    s0, s1, s2 = _to_box(ax, ay, az, c, r)
+    e0, e1, e2 = _to_box(bx, by, bz, c, r)
+    d0, d1, d2 = e0 - s0, e1 - s1, e2 - s2
+    # The ≤ 6 interior breakpoints, kept sorted by insertion (no allocation).
+    c0 = c1 = c2 = c3 = c4 = c5 = 2.0
+    count = 0
+    for k in range(6):
+        axis, side = k // 2, -1.0 if k % 2 == 0 else 1.0
+        s, d, h = _box_axis(axis, s0, s1, s2, d0, d1, d2, h0, h1, h2)
+        crosses, t = _face_crossing(side, s, d, h)
+        if not crosses:
+            continue
+        c0, c1, c2, c3, c4, c5 = _insert_sorted(t, c0, c1, c2, c3, c4, c5)
+        count += 1
+    best = math.inf
+    lo = 0.0
+    for piece in range(count + 1):
+        hi = _piece_end(piece, count, c0, c1, c2, c3, c4, c5)
+        value = _piece_minimum(lo, hi, s0, s1, s2, d0, d1, d2, h0, h1, h2)
+        if value < best:
+            best = value
+        lo = hi
+    return math.sqrt(max(best, 0.0))
+
+
+@njit
+def _box_box(c1, r1, a0, a1, a2, c2, r2, b0, b1, b2):
+    """A lower bound on the distance of two boxes: the largest gap of their projections on
+    the 15 separating-axis candidates (face normals and edge cross products); a
+    projection never lengthens a distance."""
+    dx, dy, dz = c2[0] - c1[0], c2[1] - c1[1], c2[2] - c1[2]
+    best = -math.inf
+    for k in range(15):
+        if k < 3:
+            lx, ly, lz = r1[k], r1[3 + k], r1[6 + k]
+        elif k < 6:
+            lx, ly, lz = r2[k - 3], r2[k], r2[k + 3]
+        else:
+            i, j = (k - 6) // 3, (k - 6) % 3
+            ux, uy, uz = r1[i], r1[3 + i], r1[6 + i]
+            vx, vy, vz = r2[j], r2[3 + j], r2[6 + j]
+            lx, ly, lz = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
+            norm = math.sqrt(lx * lx + ly * ly + lz * lz)
+            if norm < 1e-9:
+                continue
+            lx, ly, lz = lx / norm, ly / norm, lz / norm
+        extent = (a0 * abs(lx * r1[0] + ly * r1[3] + lz * r1[6])
+                  + a1 * abs(lx * r1[1] + ly * r1[4] + lz * r1[7])
+                  + a2 * abs(lx * r1[2] + ly * r1[5] + lz * r1[8])
+                  + b0 * abs(lx * r2[0] + ly * r2[3] + lz * r2[6])
+                  + b1 * abs(lx * r2[1] + ly * r2[4] + lz * r2[7])
+                  + b2 * abs(lx * r2[2] + ly * r2[5] + lz * r2[8]))
+        gap = abs(lx * dx + ly * dy + lz * dz) - extent
+        if gap > best:
+            best = gap
+    return best
+
+
+@njit
+def _plane_height(px, py, pz, c, r):
+    """Height of a world point above a plane (its z axis; the half-space below is solid)."""
+    return r[2] * (px - c[0]) + r[5] * (py - c[1]) + r[8] * (pz - c[2])
+
+
+@njit
+def _capsule_ends(c, r, half):
+    return (c[0] - half * r[2], c[1] - half * r[5], c[2] - half * r[8],
+            c[0] + half * r[2], c[1] + half * r[5], c[2] + half * r[8])
+
+
+@njit
+def _bound_shapes(ka, ca, ra, sa0, sa1, sa2, kb, cb, rb, sb0, sb1, sb2):
+    """Lower bound on the distance of two containers of kinds SPHERE/CAPSULE/BOX/PLANE."""
+    if ka > kb:
+        return _bound_ordered(kb, cb, rb, sb0, sb1, sb2, ka, ca, ra, sa0, sa1, sa2)
+    return _bound_ordered(ka, ca, ra, sa0, sa1, sa2, kb, cb, rb, sb0, sb1, sb2)
+
+
+@njit
+def _bound_ordered(ka, ca, ra, sa0, sa1, sa2, kb, cb, rb, sb0, sb1, sb2):
+    """:func:`_bound_shapes` with ``ka <= kb``."""
+    if ka == SPHERE:
+        if kb == SPHERE:
+            dx, dy, dz = ca[0] - cb[0], ca[1] - cb[1], ca[2] - cb[2]
+            return math.sqrt(dx * dx + dy * dy + dz * dz) - sa0 - sb0
+        if kb == CAPSULE:
+            e = _capsule_ends(cb, rb, sb1)
+            return math.sqrt(_point_segment_sq(ca[0], ca[1], ca[2], e[0], e[1], e[2],
+                                               e[3], e[4], e[5])) - sa0 - sb0
+        if kb == BOX:
+            return _point_box(ca[0], ca[1], ca[2], cb, rb, sb0, sb1, sb2) - sa0
+        return _plane_height(ca[0], ca[1], ca[2], cb, rb) - sa0
+    if ka == CAPSULE:
+        e = _capsule_ends(ca, ra, sa1)
+        if kb == CAPSULE:
+            f = _capsule_ends(cb, rb, sb1)
+            return math.sqrt(_segment_segment_sq(e[0], e[1], e[2], e[3], e[4], e[5],
+                                                 f[0], f[1], f[2], f[3], f[4], f[5])
+                             ) - sa0 - sb0
+        if kb == BOX:
+            return _segment_box(e[0], e[1], e[2], e[3], e[4], e[5], cb, rb, sb0, sb1, sb2) - sa0
+        return min(_plane_height(e[0], e[1], e[2], cb, rb),
+                   _plane_height(e[3], e[4], e[5], cb, rb)) - sa0
+    if ka == BOX:
+        if kb == BOX:
+            return _box_box(ca, ra, sa0, sa1, sa2, cb, rb, sb0, sb1, sb2)
+        reach = (sa0 * abs(rb[2] * ra[0] + rb[5] * ra[3] + rb[8] * ra[6])
+                 + sa1 * abs(rb[2] * ra[1] + rb[5] * ra[4] + rb[8] * ra[7])
+                 + sa2 * abs(rb[2] * ra[2] + rb[5] * ra[5] + rb[8] * ra[8]))
+        return _plane_height(ca[0], ca[1], ca[2], cb, rb) - reach
+    return -math.inf
+
+
+@njit
+def _bound_pair(ka, ca, ra, sa, kb, cb, rb, sb):
+    """Lower bound on the distance of two slots' containers, any kinds: a cylinder is held
+    by the capsule of its radius over its axis and by its box, so the larger of the two
+    bounds holds; an unbounded kind gives −inf (MuJoCo decides)."""
+    if ka == UNBOUNDED or kb == UNBOUNDED or (ka == PLANE and kb == PLANE):
+        return -math.inf
+    best = -math.inf
+    for use_a in range(2 if ka == CYLINDER else 1):
+        ta, a0, a1, a2 = ka, sa[0], sa[1], sa[2]
+        if ka == CYLINDER:
+            ta, a0, a1, a2 = (BOX, sa[0], sa[0], sa[1]) if use_a else (CAPSULE, sa[0], sa[1], 0.0)
+        for use_b in range(2 if kb == CYLINDER else 1):
+            tb, b0, b1, b2 = kb, sb[0], sb[1], sb[2]
+            if kb == CYLINDER:
+                tb, b0, b1, b2 = ((BOX, sb[0], sb[0], sb[1]) if use_b
+                                  else (CAPSULE, sb[0], sb[1], 0.0))
+            value = _bound_shapes(ta, ca, ra, a0, a1, a2, tb, cb, rb, b0, b1, b2)
+            if value > best:
+                best = value
+    return best
+
+
+
+@njit
+def _box_box_distance(c1, r1, a0, a1, a2, c2, r2, b0, b1, b2):
+    """The distance of two solid boxes (0 where they overlap): the least distance of an
+    edge of either to the other box. Separated boxes have a nearest pair with a point on
+    an edge of one of them (vertex–face, edge–edge and face–face contacts all include
+    one), and overlapping ones an edge of one inside the other (every vertex of their
+    intersection lies on an edge of one), so the least of the 24 segment–box distances is
+    exact."""
+    best = math.inf
+    for which in range(2):
+        if which == 0:
+            c, r, h0, h1, h2, cb, rb, k0, k1, k2 = c1, r1, a0, a1, a2, c2, r2, b0, b1, b2
+        else:
+            c, r, h0, h1, h2, cb, rb, k0, k1, k2 = c2, r2, b0, b1, b2, c1, r1, a0, a1, a2
+        for axis in range(3):  # the 4 edges parallel to each axis
+            for corner in range(4):
+                u = -1.0 if corner & 1 else 1.0
+                v = -1.0 if corner & 2 else 1.0
+                if axis == 0:
+                    x0, y0, z0, x1, y1, z1 = -h0, u * h1, v * h2, h0, u * h1, v * h2
+                elif axis == 1:
+                    x0, y0, z0, x1, y1, z1 = u * h0, -h1, v * h2, u * h0, h1, v * h2
+                else:
+                    x0, y0, z0, x1, y1, z1 = u * h0, v * h1, -h2, u * h0, v * h1, h2
+                px = c[0] + r[0] * x0 + r[1] * y0 + r[2] * z0
+                py = c[1] + r[3] * x0 + r[4] * y0 + r[5] * z0
+                pz = c[2] + r[6] * x0 + r[7] * y0 + r[8] * z0
+                qx = c[0] + r[0] * x1 + r[1] * y1 + r[2] * z1
+                qy = c[1] + r[3] * x1 + r[4] * y1 + r[5] * z1
+                qz = c[2] + r[6] * x1 + r[7] * y1 + r[8] * z1
+                d = _segment_box(px, py, pz, qx, qy, qz, cb, rb, k0, k1, k2)
+                if d < best:
+                    best = d
+                    if best == 0.0:
+                        return 0.0
+    return best
+
+
+@njit
+def _inner_distance(ka, ca, ra, sa, kb, cb, rb, sb):
+    """The distance of two inner shapes (kinds ``SPHERE``/``CAPSULE``/``BOX``/``PLANE``,
+    centres, rotations as row-major 9-tuples, sizes), signed where the closed forms are
+    (below 0: overlap); +inf where either has none (``NO_INNER``) or both are planes."""
+    if ka == NO_INNER or kb == NO_INNER or (ka == PLANE and kb == PLANE):
+        return math.inf
+    if ka == BOX and kb == BOX:
+        return _box_box_distance(ca, ra, sa[0], sa[1], sa[2], cb, rb, sb[0], sb[1], sb[2])
+    # Every other pair of these kinds is measured exactly (the separating-axis bound is
+    # used for box–box only).
+    return _bound_shapes(ka, ca, ra, sa[0], sa[1], sa[2], kb, cb, rb, sb[0], sb[1], sb[2])

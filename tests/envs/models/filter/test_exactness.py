@@ -1,0 +1,198 @@
+"""The compiled filter's answers are MuJoCo's.
+
+The exactness tests compare the ``"compiled"`` backend with ``"loop"`` (the advancing
+Python loop, itself tested equal to checking every grid sample in test_collision.py) and
+demand equality: the same verdict and the same first colliding sample for every path, the
+same contact count for every configuration.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from envs.kinematics import make_arm
+from envs.models import CollisionChecker, arm_spec, build_model
+from envs.models.builders import add_part, add_static_body, compile_spec
+from tests.envs.models.conftest import scene_cases
+
+#: Paths per arm × scene in the exactness tests (half short moves, half across the range).
+PATHS = 2000
+
+
+def _checker(arm_name: str, scene: str, backend: str, **kwargs) -> CollisionChecker:
+    arm = make_arm(arm_name)
+    return CollisionChecker(build_model(arm_name, scene, **kwargs), dof=arm.dof, backend=backend)
+
+
+def _paths(arm, rng, count):
+    """Half: from uniform configurations by up to a quarter of every joint range; half:
+    between two uniform configurations."""
+    lower, upper = arm.joint_limits[:, 0], arm.joint_limits[:, 1]
+    q0 = rng.uniform(lower, upper, size=(count, arm.dof))
+    near = np.clip(q0 + rng.uniform(-0.25, 0.25, size=q0.shape) * (upper - lower), lower, upper)
+    far = rng.uniform(lower, upper, size=q0.shape)
+    q1 = np.where(np.arange(count)[:, None] % 2 == 0, near, far)
+    return q0, q1
+
+
+
+# ------------------------------------------------------------------------- exactness
+@pytest.mark.parametrize(("arm_name", "scene"), scene_cases())
+def test_path_verdicts_and_first_samples_equal_the_loop(arm_name, scene):
+    arm = make_arm(arm_name)
+    model = build_model(arm_name, scene)
+    compiled = CollisionChecker(model, dof=arm.dof, backend="compiled")
+    loop = CollisionChecker(model, dof=arm.dof, backend="loop")
+    q0, q1 = _paths(arm, np.random.default_rng(20), PATHS)
+    collides, first = loop.check_paths(q0, q1)
+    np.testing.assert_array_equal(compiled.paths_collide(q0, q1), collides)
+    fast_collides, fast_first = compiled.check_paths(q0, q1)
+    np.testing.assert_array_equal(fast_collides, collides)
+    np.testing.assert_array_equal(fast_first, first)  # NaN == NaN for free paths
+    if arm_name != "rod_mechanism":  # the rod's table stays clear of itself and the clutter
+        assert 0.02 < collides.mean() < 0.98  # both verdicts are exercised
+    # One start, many ends (a step's K moves) is the same check.
+    from_one = loop.check_paths(np.broadcast_to(q0[0], q1[:50].shape), q1[:50])[0]
+    np.testing.assert_array_equal(compiled.paths_collide(q0[0], q1[:50]), from_one)
+
+
+@pytest.mark.parametrize(("arm_name", "scene"), scene_cases())
+def test_configuration_contact_counts_equal_the_loop(arm_name, scene):
+    arm = make_arm(arm_name)
+    model = build_model(arm_name, scene)
+    compiled = CollisionChecker(model, dof=arm.dof, backend="compiled")
+    loop = CollisionChecker(model, dof=arm.dof, backend="loop")
+    rng = np.random.default_rng(21)
+    q = rng.uniform(arm.joint_limits[:, 0], arm.joint_limits[:, 1], size=(PATHS, arm.dof))
+    counts = loop.n_contacts(q)
+    np.testing.assert_array_equal(compiled.n_contacts(q), counts)
+    assert compiled.n_contacts(q.reshape(2, -1, arm.dof)).shape == (2, PATHS // 2)
+
+
+@pytest.mark.parametrize(("arm_name", "scene"), scene_cases())
+def test_configuration_verdicts_equal_the_loop(arm_name, scene):
+    # Verdicts may come from inner shapes (witnesses) instead of MuJoCo: the same verdicts.
+    arm = make_arm(arm_name)
+    model = build_model(arm_name, scene)
+    compiled = CollisionChecker(model, dof=arm.dof, backend="compiled")
+    loop = CollisionChecker(model, dof=arm.dof, backend="loop")
+    rng = np.random.default_rng(21)
+    q = rng.uniform(arm.joint_limits[:, 0], arm.joint_limits[:, 1], size=(PATHS, arm.dof))
+    expected = loop.collides(q)
+    before = compiled._filter.counters.copy()
+    np.testing.assert_array_equal(compiled.collides(q), expected)
+    witnessed = (compiled._filter.counters - before)[4]
+    if expected.any():
+        assert witnessed > 0.5 * expected.sum()  # most contacts need no MuJoCo call
+
+
+@pytest.mark.parametrize("backend", ["compiled", "loop"])
+def test_first_free_rows_are_the_full_checks_first_free_rows(backend):
+    arm = make_arm("anthropomorphic")
+    checker = _checker("anthropomorphic", "random_clutter", backend)
+    rng = np.random.default_rng(22)
+    q = rng.uniform(arm.joint_limits[:, 0], arm.joint_limits[:, 1], size=(400, arm.dof))
+    free = np.flatnonzero(~checker.collides(q))
+    assert 20 < len(free) < 380
+    for need in (1, 2, 5, len(free), len(free) + 3):
+        np.testing.assert_array_equal(checker.first_free_rows(q, need), free[:need])
+    if backend == "compiled":  # the rows after the need-th free one are not checked
+        before = checker._filter.counters[0]
+        checker.first_free_rows(q, 1)
+        assert checker._filter.counters[0] - before == free[0] + 1
+
+
+def test_milling_cell_transfers_equal_the_loop():
+    arm = make_arm("anthropomorphic")
+    model = build_model("anthropomorphic", "milling_cell")
+    from envs.models import milling_cell_poses
+
+    (q1, ok1), (q2, ok2) = (arm.ik(pose) for pose in milling_cell_poses())
+    assert ok1.all() and ok2.all()
+    compiled = CollisionChecker(model, dof=arm.dof, backend="compiled")
+    loop = CollisionChecker(model, dof=arm.dof, backend="loop")
+    expected = loop.check_paths(q1[:, None], q2[None])
+    np.testing.assert_equal(compiled.check_paths(q1[:, None], q2[None]), expected)
+    np.testing.assert_array_equal(compiled.paths_collide(q1[:, None], q2[None]), expected[0])
+    assert expected[0].sum() == 61  # docs/models.md: 3 of the 64 transfers are free
+    result = compiled.check_path(q1[0], q2[0])
+    assert not result.collides and result.n_samples == loop.check_path(q1[0], q2[0]).n_samples
+
+
+def test_thin_obstacle_and_tilted_plane_equal_the_loop():
+    # A 4 mm rod across the tool's sweep and a tilted wall: the shapes where a filter
+    # that only looked at samples, or at a level floor, would go wrong.
+    arm = make_arm("anthropomorphic")
+    spec, _ = arm_spec(arm, tool=True)
+    q = arm.home.copy()
+    q[0] = np.radians(2.5)
+    pose = arm.fk(q)
+    middle = pose[:3, 3] + 0.2 * pose[:3, 1]
+    add_part(add_static_body(spec, "rod"), "rod", "capsule", [0.002], (1, 0, 0, 1),
+             fromto=[middle[0], middle[1], 0.05, middle[0], middle[1], middle[2] + 0.05])
+    wall = spec.worldbody.add_geom()
+    wall.name, wall.type = "wall", mujoco.mjtGeom.mjGEOM_PLANE
+    wall.size, wall.pos = [0.0, 0.0, 0.05], [1.2, 0.0, 1.0]
+    wall.quat = [np.cos(0.6), 0.0, -np.sin(0.6), 0.0]
+    model = compile_spec(spec)
+    compiled = CollisionChecker(model, dof=arm.dof, backend="compiled")
+    loop = CollisionChecker(model, dof=arm.dof, backend="loop")
+    q0, q1 = arm.home.copy(), arm.home.copy()
+    q0[0], q1[0] = np.radians(-30.0), np.radians(30.0)
+    assert compiled.check_path(q0, q1) == loop.check_path(q0, q1)
+    assert compiled.check_path(q0, q1).collides
+    starts, ends = _paths(arm, np.random.default_rng(22), 400)
+    np.testing.assert_equal(compiled.check_paths(starts, ends), loop.check_paths(starts, ends))
+
+
+def test_unpadded_checks_equal_the_loop():
+    # pad=False: margins 0, so "collision" means touching; the bounds must follow.
+    arm = make_arm("anthropomorphic")
+    model = build_model("anthropomorphic", "random_clutter", seed=3)
+    compiled = CollisionChecker(model, dof=arm.dof, pad=False, backend="compiled")
+    loop = CollisionChecker(model, dof=arm.dof, pad=False, backend="loop")
+    q0, q1 = _paths(arm, np.random.default_rng(23), 400)
+    np.testing.assert_equal(compiled.check_paths(q0, q1), loop.check_paths(q0, q1))
+    np.testing.assert_array_equal(compiled.n_contacts(q0), loop.n_contacts(q0))
+
+
+def test_the_filter_decides_most_samples_itself():
+    # The point of the filter: on random-clutter paths MuJoCo sees a small share of the
+    # grid samples (a regression of the bounds shows up here before it shows in speed).
+    arm = make_arm("anthropomorphic")
+    checker = _checker("anthropomorphic", "random_clutter", "compiled", seed=1)
+    q0, q1 = _paths(arm, np.random.default_rng(24), 300)
+    grid = int((checker.n_steps(q0, q1) + 1).sum())
+    checker.paths_collide(q0, q1)
+    bounded, exact, _, _, _ = checker._filter.counters
+    assert exact < 0.01 * grid and bounded < 0.1 * grid
+
+
+
+def test_mujoco_checks_that_find_no_contact_are_counted():
+    # An ellipsoid is bounded by its box, whose corners stick out: samples there go to
+    # MuJoCo and come back free (false alarms). Every colliding sample is either proven in
+    # contact by inner shapes (witnessed) or confirmed by MuJoCo, so those two add up to
+    # the colliding configurations, and to one per colliding path in a verdict-only call.
+    arm = make_arm("anthropomorphic")
+    spec, _ = arm_spec(arm)
+    egg = add_static_body(spec, "egg").add_geom()
+    egg.name, egg.type = "egg", mujoco.mjtGeom.mjGEOM_ELLIPSOID
+    egg.size, egg.pos = [0.35, 0.35, 0.35], [0.9, 0.0, 1.0]
+    checker = CollisionChecker(compile_spec(spec), dof=arm.dof, backend="compiled")
+    counters = checker._filter.counters
+    rng = np.random.default_rng(25)
+    q = rng.uniform(arm.joint_limits[:, 0], arm.joint_limits[:, 1], size=(3000, arm.dof))
+    before = counters.copy()
+    colliding = checker.collides(q)
+    _, checks, _, alarms, witnessed = counters - before
+    assert colliding.any() and alarms > 0 and witnessed > 0
+    assert checks - alarms + witnessed == colliding.sum()
+    q0, q1 = _paths(arm, np.random.default_rng(26), 400)
+    before = counters.copy()
+    hits = checker.paths_collide(q0, q1)
+    _, checks, _, alarms, witnessed = counters - before
+    assert hits.any() and alarms > 0 and witnessed > 0
+    assert checks - alarms + witnessed == hits.sum()

@@ -1,0 +1,127 @@
+"""What the filter reads off a model: containers that hold their geoms, rates that bound
+how fast pairs close, refused models, MuJoCo's quaternion matrices."""
+
+from __future__ import annotations
+
+import itertools
+
+import mujoco
+import numpy as np
+import pytest
+
+from envs.kinematics import make_arm
+from envs.models import CollisionChecker, build_model
+from envs.models.collision import candidate_pairs
+from envs.models.filter import kernels, layout
+from envs.models.filter import tree as kinematics
+from tests.envs.models.conftest import scene_cases
+
+
+def _surface_points(model: mujoco.MjModel, geom: int, rng) -> np.ndarray:
+    """Points of the geom's solid in its own frame, on or near its surface (meshes: the
+    vertices, whose hull MuJoCo collides)."""
+    kind, size = model.geom_type[geom], model.geom_size[geom]
+    directions = rng.normal(size=(200, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    types = mujoco.mjtGeom
+    if kind == types.mjGEOM_SPHERE:
+        return size[0] * directions
+    if kind == types.mjGEOM_CAPSULE:
+        ends = np.where(rng.random(200)[:, None] < 0.5, 1.0, -1.0) * [0, 0, size[1]]
+        return ends + size[0] * directions
+    if kind == types.mjGEOM_BOX:
+        return np.array(list(itertools.product((-1, 1), repeat=3))) * size
+    if kind == types.mjGEOM_CYLINDER:
+        angle = rng.uniform(0, 2 * np.pi, 200)
+        height = rng.choice([-1.0, 1.0], 200) * size[1]
+        return np.stack([size[0] * np.cos(angle), size[0] * np.sin(angle), height], axis=1)
+    if kind == types.mjGEOM_ELLIPSOID:
+        return directions * size
+    if kind == types.mjGEOM_MESH:
+        mesh = model.geom_dataid[geom]
+        start, count = model.mesh_vertadr[mesh], model.mesh_vertnum[mesh]
+        return model.mesh_vert[start : start + count].astype(np.float64)
+    raise AssertionError(f"no test points for geom type {kind}")
+
+
+@pytest.mark.parametrize(("arm_name", "scene"), scene_cases())
+def test_containers_hold_their_geoms(arm_name, scene):
+    model = build_model(arm_name, scene)
+    pairs = candidate_pairs(model)
+    rng = np.random.default_rng(26)
+    for geom in np.unique(pairs):
+        kind, size, offset, radius = layout.container(model, int(geom))
+        if kind in (layout.PLANE, layout.UNBOUNDED):
+            continue
+        p = (_surface_points(model, int(geom), rng) - offset) * (1 - 1e-12)  # container frame
+        radial = np.hypot(p[:, 0], p[:, 1])
+        inside = {
+            layout.SPHERE: np.linalg.norm(p, axis=1) <= size[0],
+            layout.CAPSULE: np.hypot(radial, np.maximum(np.abs(p[:, 2]) - size[1], 0)) <= size[0],
+            layout.BOX: np.all(np.abs(p) <= size, axis=1),
+            layout.CYLINDER: (radial <= size[0]) & (np.abs(p[:, 2]) <= size[1]),
+        }[kind]
+        assert inside.all(), model.geom(int(geom)).name
+        assert (np.linalg.norm(p, axis=1) <= radius).all()
+
+
+
+@pytest.mark.parametrize(("arm_name", "scene"), scene_cases())
+def test_pair_rates_bound_how_fast_pairs_close(arm_name, scene):
+    # Along random paths, the distance between any point of a's bounding sphere and any
+    # of b's (fixed in their geoms' frames) changes no faster than the pair's lever-arm
+    # rate: joints that move both geoms keep such distances, the others are bounded.
+    arm = make_arm(arm_name)
+    model = build_model(arm_name, scene)
+    checker = CollisionChecker(model, dof=arm.dof, backend="compiled")
+    arrays, geometry = checker._filter.scene.tree, checker._filter.scene.geometry
+    scene = kernels._scene(geometry, 0)
+    slot_radius, pair_a, pair_b, pair_lever = scene[6], scene[7], scene[8], scene[10]
+    xpos, xmat, wpos, wrot, _, _ = kernels._work(arrays, geometry)
+    directions = np.concatenate([np.zeros((1, 3)), np.eye(3), -np.eye(3)])
+    finite = np.where(np.isfinite(slot_radius), slot_radius, 0.0)
+    local = finite[:, None, None] * directions[None]  # (slots, 7, 3)
+    rng = np.random.default_rng(30)
+    lower, upper = arm.joint_limits[:, 0], arm.joint_limits[:, 1]
+    t = np.linspace(0, 1, 201)
+    for _ in range(6):
+        q0, q1 = rng.uniform(lower, upper, size=(2, arm.dof))
+        rates = pair_lever[:, : arm.dof] @ np.abs(q1 - q0)
+        points = []
+        for ti in t:
+            qpos = model.qpos0.copy()
+            qpos[: arm.dof] = q0 + ti * (q1 - q0)
+            kinematics._forward(*arrays[:12], qpos, xpos, xmat)
+            kinematics._place_slots(*scene[:4], xpos, xmat, wpos, wrot)
+            points.append(wpos[:, None] + np.einsum("sij,skj->ski", wrot, local))
+        points = np.array(points)  # (T, slots, 7, 3)
+        for k, (a, b) in enumerate(zip(pair_a, pair_b, strict=True)):
+            gaps = np.linalg.norm(points[:, a, :, None] - points[:, b, None, :], axis=-1)
+            change = np.abs(np.diff(gaps, axis=0)).max()
+            assert change <= rates[k] * (t[1] - t[0]) + 1e-12, (k, change, rates[k])
+
+
+
+def test_unsupported_models_are_refused():
+    spec = mujoco.MjSpec()
+    body = spec.worldbody.add_body()
+    body.add_joint().type = mujoco.mjtJoint.mjJNT_BALL
+    geom = body.add_geom()
+    geom.size = [0.1, 0, 0]
+    model = spec.compile()
+    with pytest.raises(ValueError, match="hinge and slide"):
+        layout.compile_scene(model, model.nq, np.zeros((0, 2), dtype=np.int64))
+
+
+
+def test_quaternion_matrices_are_mujocos():
+    rng = np.random.default_rng(8)
+    quats = rng.normal(size=(2000, 4))
+    quats /= np.linalg.norm(quats, axis=1)[:, None]
+    quats[0] = (1.0, 0.0, 0.0, 0.0)
+    for quat in quats:
+        expected = np.zeros(9)
+        mujoco.mju_quat2Mat(expected, quat)
+        np.testing.assert_allclose(layout._quat_to_mat(quat), expected.reshape(3, 3), rtol=0,
+                                   atol=1e-15)
+    np.testing.assert_array_equal(layout._quat_to_mat(quats[0]), np.eye(3))

@@ -1,0 +1,50 @@
+"""The env's kernels are cached under a hash of every module they are compiled from."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numba
+
+import envs
+from envs import jit
+
+ROOT = Path(envs.__file__).resolve().parent
+
+
+def test_every_module_that_compiles_kernels_is_hashed():
+    hashed = {path.resolve() for path in jit._sources()}
+    compiling = set()
+    for path in ROOT.rglob("*.py"):
+        if "kinematics" in path.relative_to(ROOT).parts or path.name == "jit.py":
+            continue  # the IK driver has its own cache (envs.kinematics.compiled)
+        text = path.read_text()
+        if "njit" in text or "intrinsic" in text:
+            compiling.add(path.resolve())
+    assert compiling and compiling <= hashed, sorted(map(str, compiling - hashed))
+
+
+def test_the_cache_directory_is_named_by_the_sources(tmp_path, monkeypatch):
+    directory = jit.cache_directory()
+    assert directory is not None and Path(directory).name.startswith("numba-")
+    # Another source text, another directory: a kernel never loads code of an old helper.
+    sources = [tmp_path / "a.py"]
+    sources[0].write_text("x = 1\n")
+    monkeypatch.setattr(jit, "_ROOT", tmp_path)
+    monkeypatch.setattr(jit, "_sources", lambda: sources)
+    jit.cache_directory.cache_clear()
+    try:
+        first = jit.cache_directory()
+        sources[0].write_text("x = 2\n")
+        jit.cache_directory.cache_clear()
+        assert jit.cache_directory() != first
+    finally:
+        jit.cache_directory.cache_clear()
+
+
+def test_kernels_are_cached_in_that_directory():
+    from envs.models.filter import kernels
+
+    location = Path(kernels.check_paths._cache._cache_path).resolve()
+    assert Path(jit.cache_directory()).resolve() in location.parents
+    assert isinstance(kernels.check_paths, numba.core.registry.CPUDispatcher)
