@@ -1,21 +1,27 @@
 """Environment throughput: steps/s of every registered id, next to Gymnasium's Reacher-v5.
 
     MUJOCO_GL=egl .venv/bin/python benchmarks/env_steps.py [--seconds 3] [--ids ID ...]
-                                                           [--vector]
+                                                           [--num-envs 16] [--async]
 
-Single process, random *masked* actions (uniform over ``action_masks()``) from a seeded
+Single process, random *masked* actions (uniform over the valid branches) from a seeded
 generator; ``Reacher-v5`` takes ``action_space.sample()``. Resets are part of every loop.
 Columns per id:
 
-- ``cold``: steps/s over the first ``--seconds`` of a fresh env (empty move caches, the
-  numba kernels already compiled on disk): what a new run sees first;
-- then, after a warm-up (``--warmup`` seconds or steps, whichever ends first, which fills
+- the single env: ``cold``, steps/s over the first ``--seconds`` of a fresh env (empty
+  move caches, the numba kernels already compiled on disk): what a new run sees first;
+  then, after a warm-up (``--warmup`` seconds or steps, whichever ends first, which fills
   the caches of tasks with a finite pose set), ``in step``: steps per second of time
   inside ``step()`` only; ``with resets``: steps per second of the whole loop, resets and
   mask queries included (the throughput a learner sees); ``× Reacher``: that figure over
-  Reacher-v5's in the same run; ``ms/reset``; ``steps/episode``.
-- ``--vector``: ``gym.make_vec(id, num_envs=2, vectorization_mode="async")`` (two worker
-  processes), masks fetched every step as MaskablePPO does, steps counted per sub-env.
+  Reacher-v5's (single env) in the same run; ``ms/reset``; ``steps/episode``;
+- ``vector``: the natively batched vector env, ``gym.make_vec(id, num_envs=N,
+  vectorization_mode="vector_entry_point", autoreset_mode="same_step")`` in this
+  process, masks from ``info["action_mask"]``, steps counted per sub-env, after the same
+  warm-up; ``× Reacher`` over Reacher-v5's *single* env;
+- ``oracle``: the same vector env playing dp_oracle's plan (planned at each reset, the
+  planning time not counted): full-length episodes, as a trained policy plays them;
+- ``--async``: ``vectorization_mode="async"`` with two worker processes, masks from
+  ``info["action_mask"]`` (no round trip), to set beside the single env's column.
 
 Numbers depend on the machine and its load: compare rows of one run.
 """
@@ -82,26 +88,74 @@ def single(env_id: str, seconds: float, warmup: float, warmup_steps: int) -> dic
     return {"cold": cold, **row}
 
 
-def vector(env_id: str, seconds: float, warmup: float) -> float:
+def _masked(masks: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Per row a uniformly random branch among ``masks``' True ones."""
+    return (rng.random(masks.shape) * masks).argmax(axis=1)
+
+
+def vector(env_id: str, num_envs: int, seconds: float, warmup: float,
+           oracle: bool = False) -> float:
+    """Steps/s (per sub-env) of the native vector env: random masked actions, or with
+    ``oracle`` dp_oracle's plans (their planning time not counted)."""
+    from agents.dp import LazyLadder
+
+    venv = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point",
+                        autoreset_mode="same_step")
+    subs = venv.unwrapped.envs
+    rng = np.random.default_rng(0)
+    _, info = venv.reset(seed=0)
+    plans: list[list[int]] = [[] for _ in subs]
+    planning = 0.0
+
+    def replan(rows) -> None:
+        nonlocal planning
+        start = time.perf_counter()
+        for i in rows:
+            plans[i] = LazyLadder(subs[i].ladder).plan(0, subs[i].n_waypoints, 0)[1]
+        planning += time.perf_counter() - start
+
+    def run(limit: float) -> float:
+        nonlocal info, planning
+        if oracle:
+            replan(range(len(subs)))
+        steps, planning = 0, 0.0
+        start = time.perf_counter()
+        while time.perf_counter() - start - planning < limit:
+            if oracle:
+                actions = np.array([plan[min(sub.index, len(plan) - 1)]
+                                    for plan, sub in zip(plans, subs, strict=True)])
+            else:
+                actions = _masked(info["action_mask"], rng)
+            _, _, terminated, _, info = venv.step(actions)
+            steps += len(subs)
+            if oracle and terminated.any():
+                replan(np.flatnonzero(terminated))
+        return steps / (time.perf_counter() - start - planning)
+
+    run(warmup)
+    rate = run(seconds)
+    venv.close()
+    return rate
+
+
+def async_pair(env_id: str, seconds: float, warmup: float) -> float:
+    """Steps/s (per sub-env) of ``make_vec(..., "async")`` with two workers."""
     venv = gym.make_vec(env_id, num_envs=2, vectorization_mode="async")
     rng = np.random.default_rng(0)
     masked = env_id in envs.ENV_SPECS
-    venv.reset(seed=0)
+    _, info = venv.reset(seed=0)
     venv.action_space.seed(0)
 
     def actions():
-        if not masked:
-            return venv.action_space.sample()
-        masks = venv.call("action_masks")
-        return np.array([rng.choice(np.flatnonzero(m)) for m in masks])
+        return _masked(info["action_mask"], rng) if masked else venv.action_space.sample()
 
     start = time.perf_counter()
     while time.perf_counter() - start < warmup:
-        venv.step(actions())
+        _, _, _, _, info = venv.step(actions())
     steps = 0
     start = time.perf_counter()
     while time.perf_counter() - start < seconds:
-        venv.step(actions())
+        _, _, _, _, info = venv.step(actions())
         steps += venv.num_envs
     total = time.perf_counter() - start
     venv.close()
@@ -115,27 +169,36 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=3.0, help="timed loop per case")
     parser.add_argument("--warmup", type=float, default=10.0, help="warm-up limit, seconds")
     parser.add_argument("--warmup-steps", type=int, default=20000, help="warm-up limit, steps")
-    parser.add_argument("--vector", action="store_true", help="add the make_vec column")
+    parser.add_argument("--num-envs", type=int, default=16, help="sub-envs of the vector env")
+    parser.add_argument("--async", dest="asynchronous", action="store_true",
+                        help="add the make_vec async column (two workers)")
     parser.add_argument("--ids", nargs="*", default=None, help="ids (default: all)")
     args = parser.parse_args()
     ids = args.ids or list(envs.ENV_IDS)
 
     print(f"{os.cpu_count()} CPUs; {args.seconds:g} s per column, warm-up ≤ {args.warmup:g} s "
-          f"/ {args.warmup_steps} steps\n")
+          f"/ {args.warmup_steps} steps; vector env of {args.num_envs}\n")
     reacher = single("Reacher-v5", args.seconds, args.warmup, args.warmup_steps)
-    header = ("| id | cold, with resets | in step | with resets | × Reacher | ms/reset "
-              "| steps/episode |")
-    print(header + (" make_vec async ×2 |" if args.vector else ""))
-    print("|---|---:|---:|---:|---:|---:|---:|" + ("---:|" if args.vector else ""))
+    base = reacher["step+reset/s"]
+    print("| id | single: cold | in step | with resets | × Reacher | ms/reset | steps/episode "
+          "| vector: with resets | × Reacher | oracle actions | × Reacher |"
+          + (" async ×2 |" if args.asynchronous else ""))
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+          + ("---:|" if args.asynchronous else ""))
     for env_id in [*ids, "Reacher-v5"]:
         row = reacher if env_id == "Reacher-v5" else single(
             env_id, args.seconds, args.warmup, args.warmup_steps)
-        ratio = row["step+reset/s"] / reacher["step+reset/s"]
         line = (f"| {env_id} | {row['cold']:,.0f} | {row['step/s']:,.0f} "
-                f"| {row['step+reset/s']:,.0f} | {ratio:.2f} | {row['ms/reset']:.2f} "
-                f"| {row['steps/episode']:.1f} |")
-        if args.vector:
-            line += f" {vector(env_id, args.seconds, args.warmup):,.0f} |"
+                f"| {row['step+reset/s']:,.0f} | {row['step+reset/s'] / base:.2f} "
+                f"| {row['ms/reset']:.2f} | {row['steps/episode']:.1f} |")
+        if env_id in envs.ENV_SPECS:
+            rates = [vector(env_id, args.num_envs, args.seconds, args.warmup, oracle)
+                     for oracle in (False, True)]
+            line += "".join(f" {rate:,.0f} | {rate / base:.2f} |" for rate in rates)
+        else:
+            line += " | | | |"
+        if args.asynchronous:
+            line += f" {async_pair(env_id, args.seconds, args.warmup):,.0f} |"
         print(line, flush=True)
 
 

@@ -87,7 +87,10 @@ ENV_IDS: tuple[str, ...] = tuple(ENV_SPECS)
 
 for _env_id, _kwargs in ENV_SPECS.items():
     if _env_id not in gym.registry:
-        gym.register(_env_id, entry_point="envs.ik_branch_env:IKBranchEnv", kwargs=_kwargs)
+        # gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point"): the
+        # natively batched vector env (envs.vector_env).
+        gym.register(_env_id, entry_point="envs.ik_branch_env:IKBranchEnv",
+                     vector_entry_point="envs.vector_env:IKBranchVectorEnv", kwargs=_kwargs)
 
 
 

@@ -10,6 +10,7 @@ import numpy as np
 from gymnasium import spaces
 
 from envs.costs import TransitionCost
+from envs.episodes import EpisodeBatch
 from envs.kinematics import ARM_NAMES, make_arm
 from envs.models import SCENES, CollisionChecker, build_arm_model
 from envs.models.scene_file import base_pose, load_scene_file
@@ -75,8 +76,13 @@ class IKBranchEnv(gym.Env):
 
     ## Action space
     ``Discrete(K)``: the branch for the next waypoint. ``action_masks()`` (sb3-contrib's
-    protocol) marks the branches that exist and lie inside the joint limits; an unmasked
-    agent may still pick an invalid one, which ends the episode with ``invalid_penalty``.
+    protocol) marks the branches that exist and lie inside the joint limits, and every
+    ``info`` of ``reset`` and ``step`` carries the same mask as ``info["action_mask"]`` (so
+    a vector env batches it with no extra call); an unmasked agent may still pick an
+    invalid one, which ends the episode with ``invalid_penalty``.
+    ``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")`` advances N
+    copies of this env together in one process, each the single env seeded s + i bit for
+    bit (``envs.vector_env.IKBranchVectorEnv``; its docstring is its manual).
 
     ## Observation space
     One flat ``Box(-1, 1, float32)``: every SB3 algorithm's default MLP policy (PPO,
@@ -169,6 +175,12 @@ class IKBranchEnv(gym.Env):
     ===================== ======================= ===========================================
 
     ## Version history
+    - Same ids, same behaviour (2026-12-03): every ``info`` carries ``action_mask``; every
+      id registers a natively batched vector env (``vector_entry_point``); collision
+      checks prove contacts from inner shapes as well as freedom from bounds, so MuJoCo is
+      called only where neither proof holds (verdicts and first colliding samples are
+      MuJoCo's, as before: observations and rewards are unchanged, tested as streams of
+      steps on every id).
     - The current generation: Cartesian, Cylindrical, Spherical, Anthropomorphic,
       Cylindrical4 **-v2**, ToolTransfer **-v1**, DualRRPRPP, DualRRRPPP, DualPPRPRR **-v1**,
       RodMechanism **-v2**, and the industrial arms (real limits, every turn branch)
@@ -271,15 +283,15 @@ class IKBranchEnv(gym.Env):
         )
         self.action_space = spaces.Discrete(self.arm.n_branches)
         self._renderer = None
-        self._moves_key: tuple | None = None
-        self._moves_cache: dict[str, np.ndarray] = {}
+        #: The episode's state, stepped as a vector env steps its rows (a batch of one).
+        self._episode = EpisodeBatch(1, self.n_waypoints, self.pricer, self._observations,
+                                     self._line_paths)
+        self._episode.q[0] = self.arm.home
+        self._row = np.zeros(1, dtype=np.int64)
 
         self.task: Task | None = None
         #: The current task's ladder (candidates and prices), None before ``reset``.
         self.ladder: TaskMoves | None = None
-        self.q = self.arm.home.copy()
-        self.index = 0
-        self.episode_collided = self.episode_invalid = False
 
     # -------------------------------------------------------------- construction steps
     def _place_arm(self, scene: str, scene_file: str | None,
@@ -391,6 +403,26 @@ class IKBranchEnv(gym.Env):
         return self.pricer.max_transition_cost
 
     @property
+    def q(self) -> np.ndarray:
+        """(dof,) the arm's configuration now (a copy)."""
+        return self._episode.q[0].copy()
+
+    @property
+    def index(self) -> int:
+        """The next waypoint (``task.n_waypoints`` once the episode is over)."""
+        return int(self._episode.index[0])
+
+    @property
+    def episode_collided(self) -> bool:
+        """A move of this episode collided."""
+        return bool(self._episode.collided[0])
+
+    @property
+    def episode_invalid(self) -> bool:
+        """A move of this episode picked an invalid branch."""
+        return bool(self._episode.invalid[0])
+
+    @property
     def candidates(self) -> np.ndarray | None:
         """(N, K, dof) IK candidates of the task's waypoints (NaN rows where invalid)."""
         return None if self.ladder is None else self.ladder.candidates
@@ -407,6 +439,15 @@ class IKBranchEnv(gym.Env):
 
     # ---------------------------------------------------------------------------- API
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        info = self._new_episode(seed)
+        self._episode.survey(self._row)
+        info["action_mask"] = self._episode.masks(self._row)[0]
+        return self._episode.observation[0].copy(), info
+
+    def _new_episode(self, seed: int | None) -> dict:
+        """Everything of ``reset`` but the first observation (a vector env assembles those
+        of its sub-envs together): seed, lay the clutter, draw the task, solve its ladder
+        and begin the episode. Returns the reset's ``info`` without the action mask."""
         super().reset(seed=seed)
         pricer = self.pricer
         if self._clutter is not None:
@@ -418,10 +459,10 @@ class IKBranchEnv(gym.Env):
             task = Task(start=task.start, poses=self.task_frame.to_fk(task.poses),
                         free_start=task.free_start)
         self._start(task, pricer.task(task))
-        info = {"waypoint": 0}
+        info: dict[str, Any] = {"waypoint": 0}
         if self._clutter is not None:
             info["scene_seed"] = self.scene_seed
-        return self._observation(), info
+        return info
 
     def _lay_scene(self, seed: int) -> None:
         """Stand the clutter of scene ``seed`` in the model (the env's and the checker's),
@@ -444,19 +485,14 @@ class IKBranchEnv(gym.Env):
 
     def _start(self, task: Task, ladder: TaskMoves) -> None:
         self.task, self.ladder = task, ladder
-        self.q = np.array(task.start, dtype=np.float64)
-        self.index = 0
-        self.episode_collided = self.episode_invalid = False
-        self._moves_key = None  # a new task: the cached moves belong to the old one
-        self._observations.prepare(ladder)
+        self._episode.begin(0, ladder, self._observations.templates(ladder))
 
     def action_masks(self) -> np.ndarray:
-        """(K,) bool: the branches of the next waypoint that exist and lie inside the limits."""
+        """(K,) bool: the branches of the next waypoint that exist and lie inside the
+        limits (every branch once the episode is over: any action then)."""
         if self.task is None:
             raise RuntimeError("call reset() before action_masks()")
-        if self.index >= self.task.n_waypoints:
-            return np.ones(self.arm.n_branches, dtype=bool)  # episode over: any action
-        return self.ladder.valid[self.index].copy()
+        return self._episode.masks(self._row)[0]
 
     def step(self, action):
         if self.task is None:
@@ -466,22 +502,12 @@ class IKBranchEnv(gym.Env):
         branch = int(action)
         if branch != action or not 0 <= branch < self.arm.n_branches:
             raise ValueError(f"action must be a branch index in [0, {self.arm.n_branches})")
-        waypoint = self.index
-        terms = {name: value[branch] for name, value in self._moves().items()}
-        reward = terms.pop("reward")
-        terminated = terms.pop("terminal")
-        if not terms["invalid"]:
-            self.q = self.ladder.candidates[waypoint, branch].copy()
-        self.index = self.task.n_waypoints if terminated else waypoint + 1
-        self.episode_collided |= terms["collision"]
-        self.episode_invalid |= terms["invalid"]
-        info = {"waypoint": waypoint, "branch": branch, **terms}
-        if terminated:
-            info["is_success"] = bool(
-                waypoint == self.task.n_waypoints - 1
-                and not self.episode_collided and not self.episode_invalid
-            )
-        return self._observation(), reward, terminated, False, info
+        steps = self._episode.advance(self._row, np.array([branch]))
+        info = steps.info(0)
+        self._episode.survey(self._row)
+        info["action_mask"] = self._episode.masks(self._row)[0]
+        return (self._episode.observation[0].copy(), float(steps.reward[0]),
+                bool(steps.terminated[0]), False, info)
 
     def edge_rewards(self, waypoint: int) -> tuple[np.ndarray, np.ndarray]:
         """Reward and termination of every move into ``waypoint``, as ``step`` pays them.
@@ -497,17 +523,9 @@ class IKBranchEnv(gym.Env):
             raise RuntimeError("call reset() before edge_rewards()")
         return self.ladder.edges(waypoint)
 
-    def _moves(self) -> dict[str, np.ndarray]:
-        """The terms (K,) of every move from where the arm stands into the next waypoint:
-        the observation's slot-0 travel and path collisions and what ``step`` pays,
-        computed once per state (all K paths in one checker call)."""
-        key = (self.index, self.q.tobytes())
-        if self._moves_key != key:
-            terms = self.ladder.terms(self.q[None], self.index)
-            # Python floats and bools per branch: ``step`` hands them out as they are.
-            self._moves_cache = {name: value[0].tolist() for name, value in terms.items()}
-            self._moves_key = key
-        return self._moves_cache
+    def _line_paths(self, lines: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+        """The episode's path verdicts (``envs.episodes``): through the pricer's cache."""
+        return self.pricer.paths_collide(starts, ends)
 
     def render(self):
         if self.render_mode != "rgb_array":
@@ -527,17 +545,6 @@ class IKBranchEnv(gym.Env):
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
-
-    # ------------------------------------------------------------------- observation
-    def _observation(self) -> np.ndarray:
-        if self.index >= self.task.n_waypoints:
-            return self._observations.observe(self.index, self.q, None, None)
-        valid, moves = self.ladder.valid[self.index], self._moves()
-        onward = None
-        if self._observations.wants_onward:  # from the branches reachable without a hit
-            free = valid & ~np.asarray(moves["collision"], dtype=bool)
-            onward = self.ladder.least_free_travel(self.index, free)
-        return self._observations.observe(self.index, self.q, valid, moves, onward)
 
     # ---------------------------------------------------------------------- pickling
     def __getstate__(self) -> dict:
@@ -565,5 +572,8 @@ class IKBranchEnv(gym.Env):
             self._np_random.bit_generator.state = state["rng"]
         if state["task"] is not None:
             self._start(state["task"], TaskMoves(self.pricer, state["task"], *state["solutions"]))
-        self.q, self.index = np.array(state["q"], dtype=np.float64), state["index"]
-        self.episode_collided, self.episode_invalid = state["flags"]
+        episode = self._episode
+        episode.q[0], episode.index[0] = state["q"], state["index"]
+        episode.collided[0], episode.invalid[0] = state["flags"]
+        if state["task"] is not None:
+            episode.survey(self._row)

@@ -30,6 +30,7 @@ every move into it, by :meth:`TaskMoves.terms`, the one function that prices a m
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -100,6 +101,11 @@ class MovePricer:
         self.max_transition_cost = float(
             cost.travel_weight * self.travel_scale + cost.time_weight * cost.time(lower, upper)
         )
+        #: What :func:`_price` takes after the moves: weights, speeds, the reward weights
+        #: and penalties.
+        self.price_arguments = (cost.weights, cost.speeds, cost.travel_weight,
+                                cost.time_weight, self.collision_penalty, self.invalid_penalty,
+                                self.terminate_on_collision, self.max_transition_cost)
         self.poses = _Cache(POSE_CACHE_SIZE)
         self.configurations = _Cache(CONFIGURATION_CACHE_SIZE)
         self.paths = _Cache(PATH_CACHE_SIZE)
@@ -234,15 +240,18 @@ def _price(origins, candidates, valid, waypoints, collision, free_start, n, weig
            travel_weight, time_weight, collision_penalty, invalid_penalty, terminate,
            max_cost, values, flags):
     """Every term of the moves from ``origins[w, r]`` to ``candidates[w, k]``, the
-    candidates of waypoint ``waypoints[w]`` (see :meth:`TaskMoves.terms`): ``values``
-    (len(_VALUES), W, R, K) and ``flags`` (3, W, R, K). Travel Σ_j w_j|Δq_j| is summed in
-    joint order, time is max_j |Δq_j|/v_j (NaN in, NaN out); the reward is the sum of its
-    terms in ``REWARD_TERMS`` order."""
+    candidates of waypoint ``waypoints[w]`` of a task of ``n[w]`` waypoints whose start is
+    free when ``free_start[w]`` (see :meth:`TaskMoves.terms`): ``values``
+    (len(_VALUES), W, R, K) and ``flags`` (3, W, R, K). Rows w may come from one task or,
+    in a batch of episodes, each from its own. Travel Σ_j w_j|Δq_j| is summed in joint
+    order, time is max_j |Δq_j|/v_j (NaN in, NaN out); the reward is the sum of its terms
+    in ``REWARD_TERMS`` order."""
     count, rows, k = collision.shape
     dof = origins.shape[2]
     for w in range(count):
         waypoint = waypoints[w]
-        still = free_start and waypoint == 0
+        length = n[w]
+        still = free_start[w] and waypoint == 0
         for r in range(rows):
             for b in range(k):
                 invalid = not valid[w, b]
@@ -263,7 +272,8 @@ def _price(origins, candidates, valid, waypoints, collision, free_start, n, weig
                         duration = np.nan
                 hit = collision[w, r, b]
                 crashed = hit and terminate
-                skipped = n - waypoint if invalid else (n - 1 - waypoint if crashed else 0)
+                skipped = (length - waypoint if invalid
+                           else (length - 1 - waypoint if crashed else 0))
                 reward_travel = -travel_weight * travel
                 reward_time = -time_weight * duration
                 reward_collision = -collision_penalty if hit else 0.0
@@ -275,44 +285,78 @@ def _price(origins, candidates, valid, waypoints, collision, free_start, n, weig
                 values[3, w, r, b], values[4, w, r, b] = reward_travel, reward_time
                 values[5, w, r, b], values[6, w, r, b] = reward_collision, reward_invalid
                 values[7, w, r, b] = reward_unfinished
-                flags[0, w, r, b] = invalid or crashed or waypoint == n - 1
+                flags[0, w, r, b] = invalid or crashed or waypoint == length - 1
                 flags[1, w, r, b], flags[2, w, r, b] = hit, invalid
 
 
 @njit
 def _onward_travel(here, there, rows, targets, weights, out):
-    """``out[a, b]`` (K, K): the travel from ``here[a]`` to ``there[b]`` where ``rows[a]``
-    and ``targets[b]``, summed as :func:`_price` sums it (Σ_j w_j|Δq_j| in joint order),
-    +inf elsewhere; ``rows[a]`` is cleared where no target is left."""
-    for a in range(here.shape[0]):
-        reached = False
-        for b in range(there.shape[0]):
-            if not (rows[a] and targets[b]):
-                out[a, b] = np.inf
-                continue
-            travel = 0.0
-            for j in range(here.shape[1]):
-                travel += abs(there[b, j] - here[a, j]) * weights[j]
-            out[a, b] = travel
-            reached = reached or travel < np.inf
-        rows[a] = reached
+    """``out[l, a, b]`` (L, K, K): per line l the travel from ``here[l, a]`` to
+    ``there[l, b]`` where ``rows[l, a]`` and ``targets[l, b]``, summed as :func:`_price`
+    sums it (Σ_j w_j|Δq_j| in joint order), +inf elsewhere; ``rows[l, a]`` is cleared
+    where no target is left."""
+    for line in range(here.shape[0]):
+        for a in range(here.shape[1]):
+            reached = False
+            for b in range(there.shape[1]):
+                if not (rows[line, a] and targets[line, b]):
+                    out[line, a, b] = np.inf
+                    continue
+                travel = 0.0
+                for j in range(here.shape[2]):
+                    travel += abs(there[line, b, j] - here[line, a, j]) * weights[j]
+                out[line, a, b] = travel
+                reached = reached or travel < np.inf
+            rows[line, a] = reached
 
 
 @njit
-def _take_or_try_next(rows, columns, hits, travel, order, tried, out, pending):
-    """One round of :meth:`TaskMoves.least_free_travel`: row ``rows[i]`` whose path to
-    ``columns[i]`` is free takes that travel; the others move on to their next cheapest
-    target, and stop where none is left."""
-    k = order.shape[1]
+def _take_or_try_next(lines, rows, columns, hits, travel, order, tried, out, pending):
+    """One round of :func:`least_free_travel`: row ``rows[i]`` of line ``lines[i]`` whose
+    path to ``columns[i]`` is free takes that travel; the others move on to their next
+    cheapest target, and stop where none is left."""
+    k = order.shape[2]
     for i in range(len(rows)):
-        row = rows[i]
+        line, row = lines[i], rows[i]
         if not hits[i]:
-            out[row] = travel[row, columns[i]]
-            pending[row] = False
+            out[line, row] = travel[line, row, columns[i]]
+            pending[line, row] = False
             continue
-        tried[row] += 1
-        if tried[row] == k or not travel[row, order[row, tried[row]]] < np.inf:
-            pending[row] = False
+        tried[line, row] += 1
+        done = tried[line, row]
+        if done == k or not travel[line, row, order[line, row, done]] < np.inf:
+            pending[line, row] = False
+
+
+#: ``paths_collide(lines (M,), starts (M, dof), ends (M, dof)) -> (M,) bool``: the path
+#: verdicts of M moves, each of one line of a batch (a task, an episode, a sub-env).
+LinePaths = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+
+
+def least_free_travel(here: np.ndarray, there: np.ndarray, branches: np.ndarray,
+                      targets: np.ndarray, weights: np.ndarray,
+                      paths_collide: LinePaths) -> np.ndarray:
+    """(L, K) per line l and branch a where ``branches[l, a]``: the least travel from
+    ``here[l, a]`` (L, K, dof) to a ``there[l, b]`` with ``targets[l, b]`` along a
+    collision-free path, +inf where there is none and where ``branches`` is False.
+
+    Paths are checked cheapest first, one ``paths_collide`` call per round for every
+    branch of every line still undecided, until each finds a free one: usually one or two
+    rounds. Targets are the free branches of the next waypoint (valid, their
+    configuration collision-free: a path ends in its target)."""
+    lines_count, k = branches.shape
+    out = np.full((lines_count, k), np.inf)
+    travel = np.empty((lines_count, k, k))
+    pending = np.array(branches, dtype=np.bool_)
+    _onward_travel(here, there, pending, targets, weights, travel)
+    order = np.argsort(travel, axis=2, kind="stable")
+    tried = np.zeros((lines_count, k), dtype=np.int64)
+    while pending.any():
+        lines, rows = np.nonzero(pending)
+        columns = order[lines, rows, tried[lines, rows]]
+        hits = paths_collide(lines, here[lines, rows], there[lines, columns])
+        _take_or_try_next(lines, rows, columns, hits, travel, order, tried, out, pending)
+    return out
 
 
 def _finite_rows(q, what: str) -> np.ndarray:
@@ -426,12 +470,10 @@ class TaskMoves:
                                              dtype=np.bool_).reshape(shape)
         values = np.empty((len(_VALUES), *shape))
         flags = np.empty((len(_FLAGS), *shape), dtype=np.bool_)
-        pricer, cost = self.pricer, self.pricer.cost
+        pricer = self.pricer
         _price(origins, self.candidates[flat], self.valid[flat], self._waypoints[flat], collision,
-               self.task.free_start, self.n_waypoints, cost.weights, cost.speeds,
-               cost.travel_weight, cost.time_weight, pricer.collision_penalty,
-               pricer.invalid_penalty, pricer.terminate_on_collision,
-               pricer.max_transition_cost, values, flags)
+               np.full(count, self.task.free_start), np.full(count, self.n_waypoints),
+               *pricer.price_arguments, values, flags)
         out = (*lead, *shape[1:])
         return values.reshape(len(_VALUES), *out), flags.reshape(len(_FLAGS), *out)
 
@@ -467,23 +509,13 @@ class TaskMoves:
         still undecided, until each finds a free one: usually one or two rounds. Targets
         whose configuration collides are skipped unchecked (a path ends in its target)."""
         waypoint = int(self._check_waypoint(waypoint))
-        k = self.valid.shape[1]
-        out = np.full(k, np.inf)
         if waypoint + 1 >= self.n_waypoints:
-            return out
-        here, there = self.candidates[waypoint], self.candidates[waypoint + 1]
+            return np.full(self.valid.shape[1], np.inf)
         targets = self.valid[waypoint + 1] & ~self.endpoint_collision[waypoint + 1]
-        travel = np.empty((k, k))
-        pending = np.asarray(branches & self.valid[waypoint], dtype=np.bool_)
-        _onward_travel(here, there, pending, targets, self.pricer.cost.weights, travel)
-        order = np.argsort(travel, axis=1, kind="stable")
-        tried = np.zeros(k, dtype=np.int64)
-        while pending.any():
-            rows = np.flatnonzero(pending)
-            columns = order[rows, tried[rows]]
-            hits = self.pricer.paths_collide(here[rows], there[columns])
-            _take_or_try_next(rows, columns, hits, travel, order, tried, out, pending)
-        return out
+        return least_free_travel(
+            self.candidates[waypoint][None], self.candidates[waypoint + 1][None],
+            (branches & self.valid[waypoint])[None], targets[None], self.pricer.cost.weights,
+            lambda lines, starts, ends: self.pricer.paths_collide(starts, ends))[0]
 
     def travel_from(self, q: np.ndarray, waypoint: int) -> np.ndarray:
         """(K,) travel from configuration ``q`` to each branch of ``waypoint`` (NaN for

@@ -20,11 +20,12 @@ limits and travel to [0, 1] by the largest possible travel:
     As compact without ``travel_out`` and ``travel_in``; instead slots h ≥ 1 carry
     ``travel`` (K × K) from every candidate of the waypoint before.
 
-Everything a task fixes is assembled once per task (:meth:`ObservationBuilder.prepare`);
+Everything a task fixes is assembled once per task (:meth:`ObservationBuilder.templates`);
 each step fills in the configuration and slot 0's travel, path collisions and (compact)
-onward free travel. The paths behind ``path_collision`` and ``free_travel_out`` are checked
-by the env (through the shared path cache), so a policy's decision time does not include
-them; a planner's (``receding_dp``) includes the checks it makes itself.
+onward free travel, for a batch of episodes at once (``envs.episodes``). The paths behind
+``path_collision`` and ``free_travel_out`` are checked by the env, so a policy's decision
+time does not include them; a planner's (``receding_dp``) includes the checks it makes
+itself.
 """
 
 from __future__ import annotations
@@ -90,7 +91,6 @@ class ObservationBuilder:
         self._path0 = slice(*self.layout["slot0/path_collision"])
         onward = self.layout.get("slot0/free_travel_out")
         self._onward0 = None if onward is None else slice(*onward)
-        self._templates = np.zeros((1, self.size), dtype=np.float32)
         #: (candidates, valid, endpoint_collision) bytes of a task -> its templates
         #: (read-only), cleared when it would grow past ``TEMPLATE_CACHE_BYTES``; only
         #: tasks seen before (``_sighted``: hashes of keys) are kept, so that tasks which
@@ -122,12 +122,13 @@ class ObservationBuilder:
     def normalise(self, q: np.ndarray) -> np.ndarray:
         return (q - self._centre) / self._half_range
 
-    def prepare(self, ladder: TaskMoves) -> None:
-        """Everything of the observation a task fixes: ``_templates[i]`` is the
-        observation at ``index == i`` (i = 0 … N) but for ``q`` and slot 0's ``travel``
-        and ``path_collision``, which :meth:`observe` fills in. They depend on the task's
-        candidates, their validity and endpoint hits only, so a task met again (a finite
-        pose set) takes them from the cache."""
+    def templates(self, ladder: TaskMoves) -> np.ndarray:
+        """Everything of the observation a task fixes, (N + 1, size) read-only: row i is
+        the observation at ``index == i`` (i = 0 … N) but for ``q`` and slot 0's
+        ``travel``, ``path_collision`` and ``free_travel_out``, which :meth:`observe_rows`
+        and :meth:`fill_slot0` fill in. They depend on the task's candidates, their
+        validity and endpoint hits only, so a task met again (a finite pose set) takes
+        them from the cache."""
         key = (ladder.candidates.tobytes(), ladder.valid.tobytes(),
                ladder.endpoint_collision.tobytes())
         templates = self._cache.get(key)
@@ -145,10 +146,10 @@ class ObservationBuilder:
                 if len(self._sighted) >= TEMPLATE_SIGHTINGS:
                     self._sighted.clear()
                 self._sighted.add(sighting)
-        self._templates = templates
+        return templates
 
     def _assemble(self, ladder: TaskMoves) -> np.ndarray:
-        """The templates of :meth:`prepare`, (N + 1, size) float32."""
+        """The templates of :meth:`templates`, (N + 1, size) float32."""
         n, k, dof = ladder.n_waypoints, self.arm.n_branches, self.arm.dof
         valid = ladder.valid
         # Per waypoint: present, candidates (invalid ones at the centre: 0), valid, endpoint.
@@ -207,22 +208,27 @@ class ObservationBuilder:
         """The layout has ``slot0/free_travel_out`` (the caller computes it per step)."""
         return self._onward0 is not None
 
-    def observe(self, index: int, q: np.ndarray, valid: np.ndarray | None,
-                moves: dict | None, onward: np.ndarray | None = None) -> np.ndarray:
-        """The observation at waypoint ``index`` with the arm at ``q``; ``moves`` are the
-        terms of every move into waypoint ``index`` (``valid`` its branches), None once the
-        episode is over; ``onward`` (K) the least travel onward along a free path from each
-        branch (``TaskMoves.least_free_travel``; inf where none), for the compact layout."""
-        obs = self._templates[index].copy()
-        # np.clip's values, without its dispatch (a fifth of this function's time).
-        obs[self._q] = np.minimum(np.maximum(self.normalise(q), -1.0), 1.0)
-        if moves is None:
-            return obs
-        travel = np.asarray(moves["travel"]) / self.travel_scale  # invalid branches: 0
-        obs[self._travel0] = np.where(valid, np.minimum(travel, 1.0), 1.0)
-        obs[self._path0] = moves["collision"]
+    def observe_rows(self, templates: np.ndarray, index: np.ndarray,
+                     q: np.ndarray) -> np.ndarray:
+        """(B, size) float32: per row b its task's template at ``index[b]`` with the
+        configuration ``q[b]``: the whole observation once an episode is over; otherwise
+        :meth:`fill_slot0` completes it. ``templates`` (B, N + 1, size)."""
+        obs = templates[np.arange(len(index)), index]
+        # np.clip's values, without its dispatch.
+        obs[:, self._q] = np.minimum(np.maximum(self.normalise(q), -1.0), 1.0)
+        return obs
+
+    def fill_slot0(self, obs: np.ndarray, rows: np.ndarray, valid: np.ndarray,
+                   travel: np.ndarray, collision: np.ndarray,
+                   onward: np.ndarray | None) -> None:
+        """Slot 0 of ``obs[rows]``: per branch of the next waypoint (``valid`` (R, K)) the
+        travel of the move there (``travel``, what ``step`` pays), whether its path
+        collides, and (compact layout) ``onward``, the least travel onward along a free
+        path (``envs.moves.least_free_travel``; inf where none)."""
+        scaled = travel / self.travel_scale  # invalid branches: 0
+        obs[rows, self._travel0] = np.where(valid, np.minimum(scaled, 1.0), 1.0)
+        obs[rows, self._path0] = collision
         if self._onward0 is not None:
             if onward is None:
                 raise ValueError("the compact observation needs the onward free travel")
-            obs[self._onward0] = np.minimum(onward / self.travel_scale, 1.0)
-        return obs
+            obs[rows, self._onward0] = np.minimum(onward / self.travel_scale, 1.0)

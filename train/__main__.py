@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 
 from train.hyperparams import ALGORITHMS
-from train.training import RunConfig, train
+from train.training import VEC_ENVS, RunConfig, train
 
 
 def _json_object(text: str) -> dict:
@@ -45,6 +45,10 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--verbose", type=int, default=0)
     p.add_argument("--torch-threads", type=int, default=1, help="learner threads (default 1)")
+    p.add_argument("--vec-env", choices=VEC_ENVS, default="native",
+                   help="how the n_envs run: the natively batched vector env in this process "
+                        "(native, the default), single envs in worker processes (subproc) or "
+                        "one after another (dummy); the learner sees the same data")
     return p
 
 
@@ -60,7 +64,7 @@ def main(argv: list[str] | None = None) -> int:
         timesteps=args.timesteps, n_envs=args.n_envs, config=args.config,
         env_kwargs=args.env_kwargs, hyperparams=args.hyperparams, resume=args.resume,
         progress_bar=not args.no_progress, verbose=args.verbose,
-        torch_threads=args.torch_threads,
+        torch_threads=args.torch_threads, vec_env=args.vec_env,
     )
     try:
         train(run, argv)

@@ -111,7 +111,7 @@ def run_trial(spec: dict[str, Any]) -> dict[str, Any]:
         resume = (directory / "checkpoints" / LATEST).exists()
         train(RunConfig(algo=algo, env_id=env_id, seed=seed, run_dir=directory,
                         timesteps=spec.get("timesteps"), resume=resume, progress_bar=False,
-                        hyperparams=dict(spec.get("hyperparams") or {}), vec_env="dummy"),
+                        hyperparams=dict(spec.get("hyperparams") or {})),
               argv=["--algo", algo, "--env", env_id, "--seed", str(seed), "--run-dir",
                     str(directory)])
     trained = time.perf_counter()

@@ -29,7 +29,7 @@ import torch
 import yaml
 from stable_baselines3.common.callbacks import CallbackList
 from stable_baselines3.common.env_util import make_vec_env
-from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecNormalize
 
 from envs.seeds import VALIDATION_OFFSET, held_out
 from train.callbacks import (
@@ -40,6 +40,7 @@ from train.callbacks import (
     atomic_save,
 )
 from train.hyperparams import RUN_KEYS, algorithm_class, check_algorithm, hyperparams_for
+from train.vec_env import make_native_vec_env
 
 VERSIONED = ("ikbranch-gym", "gymnasium", "mujoco", "numpy", "torch", "stable-baselines3",
              "sb3-contrib")
@@ -69,9 +70,34 @@ class RunConfig:
     #: The learner's torch threads. One is fastest here: the policy is a small MLP and, on a
     #: 2-core machine, a second thread only fights the env processes (10x slower measured).
     torch_threads: int = 1
-    #: "subproc": the n_envs in worker processes (n_envs > 1), "dummy": all in this one
-    #: (a sweep runs one trial per CPU).
-    vec_env: str = "subproc"
+    #: One of ``VEC_ENVS``: "native" (the default): the natively batched vector env, all
+    #: n_envs in this process with no per-env loop (``train/vec_env.py``); "subproc": the
+    #: single envs in worker processes; "dummy": the single envs one after another here.
+    #: The three give the learner the same data (tested).
+    vec_env: str = "native"
+
+
+#: The ways ``train`` runs its envs (``RunConfig.vec_env``).
+VEC_ENVS = ("native", "subproc", "dummy")
+
+
+def vec_envs(kind: str, env_id: str, env_kwargs: dict[str, Any], n_envs: int,
+             seed: int) -> tuple[VecEnv, VecEnv]:
+    """The training envs (``n_envs``, sub-env i seeded ``seed + i``) and the one held-out
+    evaluation env, both of ``kind`` (one of ``VEC_ENVS``)."""
+    if kind not in VEC_ENVS:
+        raise ValueError(f"vec_env must be one of {', '.join(map(repr, VEC_ENVS))}, got {kind!r}")
+    evaluation = held_out(env_id, env_kwargs)
+    eval_seed = seed + VALIDATION_OFFSET
+    if kind == "native":
+        return (make_native_vec_env(env_id, n_envs, env_kwargs, seed=seed),
+                make_native_vec_env(env_id, 1, evaluation, seed=eval_seed))
+    vec_env_cls = SubprocVecEnv if n_envs > 1 and kind == "subproc" else DummyVecEnv
+    train_env = make_vec_env(functools.partial(make_env, env_id, env_kwargs), n_envs=n_envs,
+                             seed=seed, vec_env_cls=vec_env_cls)
+    eval_env = make_vec_env(functools.partial(make_env, env_id, evaluation), n_envs=1,
+                            seed=eval_seed, vec_env_cls=vec_env_cls)
+    return train_env, eval_env
 
 
 def branch_policy(algo: str, factory, overrides: dict[str, Any]) -> tuple[type, dict[str, Any]]:
@@ -130,15 +156,10 @@ def train(run: RunConfig, argv: list[str] | None = None):
     env_kwargs = params["env_kwargs"]
     n_envs = params["n_envs"]
     factory = functools.partial(make_env, run.env_id, env_kwargs)
-    if run.vec_env not in ("subproc", "dummy"):
-        raise ValueError(f"vec_env must be 'subproc' or 'dummy', got {run.vec_env!r}")
-    vec_env_cls = SubprocVecEnv if n_envs > 1 and run.vec_env == "subproc" else DummyVecEnv
-    train_env = make_vec_env(factory, n_envs=n_envs, seed=run.seed, vec_env_cls=vec_env_cls)
-    # The same VecEnv class as training (SB3 warns otherwise), one env: masks and seeds;
-    # scenes from the held-out range where the id draws one per episode (envs/seeds.py).
-    eval_factory = functools.partial(make_env, run.env_id, held_out(run.env_id, env_kwargs))
-    eval_env = make_vec_env(eval_factory, n_envs=1, seed=run.seed + VALIDATION_OFFSET,
-                            vec_env_cls=vec_env_cls)
+    # The evaluation env: the same VecEnv class as training (SB3 warns otherwise), one env:
+    # masks and seeds; scenes from the held-out range where the id draws one per episode
+    # (envs/seeds.py).
+    train_env, eval_env = vec_envs(run.vec_env, run.env_id, env_kwargs, n_envs, run.seed)
     if params.get("normalize_reward", False):
         # Returns span −20 (a clean run) to −300 (an early crash): scaling the reward by
         # its running std keeps the value targets small and, measured on ToolTransfer-v0,

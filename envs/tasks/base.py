@@ -51,6 +51,9 @@ class TaskGenerator(Protocol):
     default_waypoints: int
     #: The task has exactly ``default_waypoints`` waypoints (the env rejects another count).
     fixed_waypoints: bool
+    #: Its poses come from a finite set, so the same moves recur from task to task (a
+    #: vector env then checks paths through each sub-env's path cache).
+    finite_poses: bool
 
     def __call__(
         self,
@@ -75,15 +78,18 @@ def task_generator(
     default_waypoints: int,
     check_arm: Callable[[Arm, str], None] | None = None,
     fixed_waypoints: bool = False,
+    finite_poses: bool = False,
 ) -> Callable[[GeneratorFunction], TaskGenerator]:
-    """Decorate a generator function with its default length and applicability check."""
+    """Decorate a generator function with its default length, applicability check and
+    the attributes of :class:`TaskGenerator`."""
 
     def decorate(function: GeneratorFunction) -> TaskGenerator:
-        # The function object itself becomes the generator: with the three attributes set
+        # The function object itself becomes the generator: with the attributes set
         # below it has everything ``TaskGenerator`` asks for.
         generator = cast(TaskGenerator, function)
         generator.default_waypoints = default_waypoints
         generator.fixed_waypoints = fixed_waypoints
+        generator.finite_poses = finite_poses
         # The protocol spells ``check_arm`` as a method (``FileTask``'s is a staticmethod);
         # here it is an attribute holding a function, called the same way. mypy refuses to
         # assign to a method, hence the ignore.

@@ -17,6 +17,7 @@ class FileTask:
     paper's transfer starts in the rack)."""
 
     fixed_waypoints = True
+    finite_poses = True
 
     def __init__(self, waypoints: WaypointFile, poses: np.ndarray,
                  start: np.ndarray | None) -> None:

@@ -107,7 +107,8 @@ def _require_cell(arm: Arm, scene: str) -> None:
         raise ValueError("tool_changes needs scene='milling_cell' (its rack and spindle)")
 
 
-@task_generator(default_waypoints=2, check_arm=_require_anthropomorphic, fixed_waypoints=True)
+@task_generator(default_waypoints=2, check_arm=_require_anthropomorphic, fixed_waypoints=True,
+                finite_poses=True)
 def paper_transfer(
     arm: Arm,
     rng: np.random.Generator,
@@ -123,7 +124,7 @@ def paper_transfer(
     return Task(start=arm.home, poses=example_poses(), free_start=True)
 
 
-@task_generator(default_waypoints=8, check_arm=_require_cell)
+@task_generator(default_waypoints=8, check_arm=_require_cell, finite_poses=True)
 def tool_changes(
     arm: Arm,
     rng: np.random.Generator,

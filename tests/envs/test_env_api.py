@@ -16,7 +16,7 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import SubprocVecEnv
 
-from tests.envs.env_cases import IDS, assert_same, choose, make, rollout
+from tests.envs.env_cases import IDS, assert_same, choose, make, rollout, same_info
 
 
 @pytest.mark.parametrize("env_id", IDS)
@@ -79,7 +79,8 @@ def test_pickles_and_continues_identically_mid_episode(env_id):
         while base.index < base.task.n_waypoints:
             actions.append(choose(base, rng, 0.2))
             a, b = base.step(actions[-1]), copy.step(actions[-1])
-            assert np.array_equal(a[0], b[0]) and a[1:] == b[1:]
+            assert np.array_equal(a[0], b[0]) and a[1:4] == b[1:4]
+            assert same_info(a[4], b[4])
         assert np.array_equal(base.reset()[0], copy.reset()[0])
 
 
@@ -95,14 +96,15 @@ def test_make_vec_reaches_the_masks(env_id, mode):
                                                                         "lookahead": 1})
     k = venv.single_action_space.n
     try:
-        obs, _ = venv.reset(seed=0)
+        obs, info = venv.reset(seed=0)
         assert obs.shape == (2, *venv.single_observation_space.shape)
         rng = np.random.default_rng(0)
         ended = 0
         for _ in range(5):
-            masks = np.stack(venv.call("action_masks"))
+            masks = info["action_mask"]  # batched from each env's info: no round trip
+            np.testing.assert_array_equal(masks, np.stack(venv.call("action_masks")))
             assert masks.shape == (2, k) and masks.dtype == bool and masks.any(axis=1).all()
-            obs, reward, terminated, _, _ = venv.step(_masked_actions(masks, rng))
+            obs, reward, terminated, _, info = venv.step(_masked_actions(masks, rng))
             assert venv.observation_space.contains(obs) and np.all(np.isfinite(reward))
             ended += int(terminated.sum())
         assert ended >= 2  # two-waypoint episodes: both sub-envs ended (and reset) at least once

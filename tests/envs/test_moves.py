@@ -49,13 +49,13 @@ def test_onward_travel_is_the_priced_travel(env_id):
         priced, _ = ladder.motion(here, w + 1)
         rows = ladder.valid[w] & (rng.random(k) < 0.7)
         targets = ladder.valid[w + 1] & (rng.random(k) < 0.7)
-        out, asked = np.empty((k, k)), rows.copy()
-        _onward_travel(here, ladder.candidates[w + 1], asked, targets,
+        out, asked = np.empty((1, k, k)), rows[None].copy()
+        _onward_travel(here[None], ladder.candidates[w + 1][None], asked, targets[None],
                        ladder.pricer.cost.weights, out)
         both = rows[:, None] & targets[None]
-        np.testing.assert_array_equal(out[both], priced[both])
-        assert np.isposinf(out[~both]).all()
-        np.testing.assert_array_equal(asked, rows & targets.any())
+        np.testing.assert_array_equal(out[0][both], priced[both])
+        assert np.isposinf(out[0][~both]).all()
+        np.testing.assert_array_equal(asked[0], rows & targets.any())
 
 
 @pytest.mark.parametrize("env_id", IDS)

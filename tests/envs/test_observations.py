@@ -130,25 +130,31 @@ def test_a_task_met_again_takes_its_templates_from_the_cache(kind, monkeypatch):
     base = env.unwrapped
     builder = base._observations
     env.reset(seed=3)
-    ladder, first = base.ladder, builder._templates
+    ladder = base.ladder
+    first = builder.templates(ladder)  # its second sighting (reset was the first): kept
     np.testing.assert_array_equal(first, builder._assemble(ladder))
-    assert not first.flags.writeable and not builder._cache  # seen once: not kept
-    builder.prepare(ladder)
-    kept = builder._templates
-    builder.prepare(ladder)
-    assert builder._templates is kept and len(builder._cache) == 1
-    np.testing.assert_array_equal(kept, first)
+    np.testing.assert_array_equal(base._episode.templates[0], first)
+    assert not first.flags.writeable and len(builder._cache) == 1
+    kept = builder.templates(ladder)
+    assert kept is first and len(builder._cache) == 1
     # Past its bound the cache starts afresh (here: room for one task).
     monkeypatch.setattr("envs.observations.TEMPLATE_CACHE_BYTES", first.nbytes)
     seed = 4
     while np.array_equal(base.ladder.candidates, ladder.candidates):
         env.reset(seed=seed)
         seed += 1
-    builder.prepare(base.ladder)  # the other task, met a second time: kept, the first dropped
+    builder.templates(base.ladder)  # the other task, met a second time: kept, the first dropped
     assert len(builder._cache) == 1
-    builder.prepare(ladder)
-    assert builder._templates is not kept
-    np.testing.assert_array_equal(builder._templates, first)
+    again = builder.templates(ladder)
+    assert again is not kept
+    np.testing.assert_array_equal(again, first)
+
+
+def test_a_task_seen_once_is_not_kept():
+    env = gym.make("IKBranch/ToolTransfer-v0")
+    env.reset(seed=3)
+    builder = env.unwrapped._observations
+    assert not builder._cache and len(builder._sighted) == 1
 
 
 def test_tasks_that_never_repeat_fill_no_template_cache():

@@ -173,7 +173,8 @@ def test_generated_task_written_and_read_back_is_the_same_episode(tmp_path, arm)
             episode = []
             for branch in sequence:
                 obs, reward, terminated, _, info = env.step(branch)
-                episode.append((obs.tolist(), reward, info))
+                episode.append((obs.tolist(), reward,
+                                {**info, "action_mask": info["action_mask"].tolist()}))
                 if terminated:
                     break
             episodes.append(episode)

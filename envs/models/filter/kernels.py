@@ -18,7 +18,7 @@ from envs.jit import njit
 
 from .. import native
 from .layout import PLANE, SPHERE
-from .shapes import _bound_pair, _inner_distance
+from .shapes import _bound_pair, _inner_distance, _skewers
 from .tree import _axis_growth, _forward, _local_speed, _path_rates, _path_sample, _place_slots
 
 #: What :func:`_sample_step` returns besides a free step (≥ 0).
@@ -50,7 +50,7 @@ def _sample_step(tree, geometry, qpos, xpos, xmat, wpos, wrot, rates, coarse, ca
      jnt_qposadr, jnt_pos, jnt_axis, jnt_axis_code, qpos0) = tree
     (slot_body, slot_static, slot_pos, slot_rot, slot_type, slot_size, slot_radius,
      pair_a, pair_b, pair_margin, _, pair_reach, pair_kind, pair_fixed, slot_pairs,
-     slot_inner, slot_inner_size, pair_contact) = geometry
+     slot_inner, slot_inner_size, pair_contact, pair_skewer) = geometry
     _forward(body_parent, body_pos, body_rot, body_jntadr, body_jntnum, body_flags,
              jnt_type, jnt_qposadr, jnt_pos, jnt_axis, jnt_axis_code, qpos0, qpos, xpos,
              xmat)
@@ -89,8 +89,8 @@ def _sample_step(tree, geometry, qpos, xpos, xmat, wpos, wrot, rates, coarse, ca
         if not gap > 0.0:
             if not witness:
                 return UNDECIDED
-            return _witnessed(coarse, survivors, pair_a, pair_b, pair_contact, slot_inner,
-                              slot_inner_size, wpos, wrot)
+            return _witnessed(coarse, survivors, pair_a, pair_b, pair_contact, pair_skewer,
+                              slot_inner, slot_inner_size, wpos, wrot)
         step = _rate_step(gap, rates[k])
         if local is not None and slot_static[b] and step < best:
             dq, growth, speeds = local
@@ -104,11 +104,12 @@ def _sample_step(tree, geometry, qpos, xpos, xmat, wpos, wrot, rates, coarse, ca
 
 
 @njit(inline="always")
-def _witnessed(coarse, survivors, pair_a, pair_b, pair_contact, slot_inner, slot_inner_size,
-               wpos, wrot):
+def _witnessed(coarse, survivors, pair_a, pair_b, pair_contact, pair_skewer, slot_inner,
+               slot_inner_size, wpos, wrot):
     """``CONTACT`` if the inner shapes of a pair whose bounding spheres may be within its
-    margin (a ``coarse`` row with step −1) are closer than the pair's contact distance,
-    else ``UNDECIDED``."""
+    margin (a ``coarse`` row with step −1) are closer than the pair's contact distance
+    (not a capsule skewering a box, which MuJoCo's capsule–box collider misses), else
+    ``UNDECIDED``."""
     for row in range(survivors):
         if coarse[row, 1] >= 0.0:
             continue
@@ -120,7 +121,10 @@ def _witnessed(coarse, survivors, pair_a, pair_b, pair_contact, slot_inner, slot
         distance = _inner_distance(slot_inner[a], _centre(wpos, a), _rotation(wrot, a),
                                    _size(slot_inner_size, a), slot_inner[b], _centre(wpos, b),
                                    _rotation(wrot, b), _size(slot_inner_size, b))
-        if distance < limit:
+        if distance < limit and not (pair_skewer[k] and _skewers(
+                slot_inner[a], _centre(wpos, a), _rotation(wrot, a), _size(slot_inner_size, a),
+                slot_inner[b], _centre(wpos, b), _rotation(wrot, b),
+                _size(slot_inner_size, b))):
             return CONTACT
     return UNDECIDED
 
@@ -231,11 +235,11 @@ def _scene(geometry, e):
     """The geometry of scene ``e`` of the stack: its row of every per-scene array."""
     (slot_body, slot_static, slot_pos, slot_rot, slot_type, slot_size, slot_radius, pair_a,
      pair_b, pair_margin, pair_lever, pair_reach, pair_kind, pair_fixed, slot_pairs,
-     slot_inner, slot_inner_size, pair_contact) = geometry
+     slot_inner, slot_inner_size, pair_contact, pair_skewer) = geometry
     return (slot_body, slot_static, slot_pos[e], slot_rot[e], slot_type, slot_size[e],
             slot_radius[e], pair_a, pair_b, pair_margin, pair_lever, pair_reach[e],
             pair_kind[e], pair_fixed[e], slot_pairs, slot_inner[e], slot_inner_size[e],
-            pair_contact)
+            pair_contact, pair_skewer)
 
 
 @njit(inline="always")

@@ -14,8 +14,11 @@ Beside the container, each geom has an *inner* shape that it holds (:func:`inner
 where it is a sphere, capsule, box, a mesh whose hull is its bounding box, or a plane; the
 capsule inside a cylinder, the sphere inside an ellipsoid. Two inner shapes closer than a
 pair's margin (less ``WITNESS_TOLERANCE``) prove the pair in contact: MuJoCo's colliders
-report it (``docs/models.md`` names the colliders this was established for; a pair of
-primitive boxes, whose collider misses some contacts inside the margin, gets no witness).
+report it (``docs/models.md`` has the study of MuJoCo's colliders behind this). Two
+colliders do not: a pair of primitive boxes (which misses some contacts inside the margin
+and reports some outside it) gets no witness, and a primitive capsule–box pair none where
+the capsule's axis passes through the box with both ends outside it (a "skewer", which
+that collider misses although the shapes overlap).
 
 Several scenes of one model (the sub-envs of a vector env, each with its own clutter)
 share everything but the static geoms' places and sizes: those fields (``PER_SCENE``)
@@ -57,9 +60,13 @@ class CompiledScene:
 
     Tree: ``body_*`` (nbody), ``jnt_*`` (njnt), ``qpos0``. Geoms ("slots": only those of
     candidate pairs): body, shape frame in the body frame (for static slots: in the world,
-    fixed), container type, size, bounding radius about the shape centre. Pairs: the two
-    slots (a static one always second), the contact margin, and per joint the lever arm
-    that bounds the rate of change of the pair's distance (m per rad, 1 for a slide).
+    fixed), container type, size, bounding radius about the shape centre, inner shape and
+    its size (in the container's frame). Pairs: the two slots (a static one always
+    second), the contact margin, the distance under which inner shapes prove a contact
+    (−inf: no witness for the pair), whether MuJoCo collides the pair as a primitive
+    capsule and box (no witness for a skewer), and per joint the lever arm that bounds the
+    rate of change of the pair's distance (m per rad, 1 for a slide). The fields in
+    ``PER_SCENE`` have a leading scene axis (module docstring).
     """
 
     body_parent: np.ndarray
@@ -81,6 +88,7 @@ class CompiledScene:
     slot_inner: np.ndarray
     slot_inner_size: np.ndarray
     pair_contact: np.ndarray
+    pair_skewer: np.ndarray
     slot_static: np.ndarray
     slot_pos: np.ndarray
     slot_rot: np.ndarray
@@ -123,7 +131,7 @@ class CompiledScene:
                 self.slot_type, self.slot_size, self.slot_radius, self.pair_a, self.pair_b,
                 self.pair_margin, self.pair_lever, self.pair_reach, self.pair_kind,
                 self.pair_fixed, self.slot_pairs, self.slot_inner, self.slot_inner_size,
-                self.pair_contact)
+                self.pair_contact, self.pair_skewer)
 
 
 #: The fields of :class:`CompiledScene` that differ between scenes of one model (static
@@ -469,10 +477,20 @@ def compile_scene(model: mujoco.MjModel, dof: int, pairs: np.ndarray) -> Compile
         slot_inner=slot_inner,
         slot_inner_size=inner_size,
         pair_contact=pair_contact,
+        pair_skewer=_capsule_box(model, geoms, pair_a, pair_b),
     )
     for name in PER_SCENE:  # one scene
         scene[name] = np.ascontiguousarray(scene[name][None])
     return CompiledScene(**scene)
+
+
+def _capsule_box(model: mujoco.MjModel, geoms: np.ndarray, pair_a: np.ndarray,
+                 pair_b: np.ndarray) -> np.ndarray:
+    """(P,) bool: the pair is a primitive capsule and a primitive box (MuJoCo's capsule–box
+    collider, which misses a capsule skewering the box)."""
+    kind = model.geom_type[geoms]
+    a, b = kind[pair_a], kind[pair_b]
+    return ((a == _GEOM_CAPSULE) & (b == _GEOM_BOX)) | ((a == _GEOM_BOX) & (b == _GEOM_CAPSULE))
 
 
 def _check_supported(model: mujoco.MjModel) -> None:
@@ -489,7 +507,7 @@ def _witnessed(model: mujoco.MjModel, geoms: np.ndarray, pair_a: np.ndarray,
                pair_b: np.ndarray, slot_inner: np.ndarray) -> np.ndarray:
     """(P,) bool: a pair whose inner shapes may prove a contact: both have one, their
     collider reports every contact inside the margin (not two primitive boxes:
-    google-deepmind/mujoco#2471), and contacts are enabled at all."""
+    google-deepmind/mujoco#2471, docs/models.md), and contacts are enabled at all."""
     off = mujoco.mjtDisableBit.mjDSBL_CONTACT | mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
     if model.opt.disableflags & off:
         return np.zeros(len(pair_a), dtype=bool)

@@ -369,3 +369,20 @@ def _inner_distance(ka, ca, ra, sa, kb, cb, rb, sb):
     # Every other pair of these kinds is measured exactly (the separating-axis bound is
     # used for box–box only).
     return _bound_shapes(ka, ca, ra, sa[0], sa[1], sa[2], kb, cb, rb, sb[0], sb[1], sb[2])
+
+
+@njit
+def _skewers(ka, ca, ra, sa, kb, cb, rb, sb):
+    """A capsule (one of the two inner shapes, the other a box) whose axis passes through
+    the box with both its ends outside: the overlap MuJoCo's capsule–box collider misses."""
+    if ka == CAPSULE and kb == BOX:
+        cc, rc, half, cx, rx, sx = ca, ra, sa[1], cb, rb, sb
+    elif ka == BOX and kb == CAPSULE:
+        cc, rc, half, cx, rx, sx = cb, rb, sb[1], ca, ra, sa
+    else:
+        return False
+    e = _capsule_ends(cc, rc, half)
+    if _segment_box(e[0], e[1], e[2], e[3], e[4], e[5], cx, rx, sx[0], sx[1], sx[2]) > 0.0:
+        return False
+    return (_point_box(e[0], e[1], e[2], cx, rx, sx[0], sx[1], sx[2]) > 0.0
+            and _point_box(e[3], e[4], e[5], cx, rx, sx[0], sx[1], sx[2]) > 0.0)

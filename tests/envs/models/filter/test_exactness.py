@@ -196,3 +196,50 @@ def test_mujoco_checks_that_find_no_contact_are_counted():
     _, checks, _, alarms, witnessed = counters - before
     assert hits.any() and alarms > 0 and witnessed > 0
     assert checks - alarms + witnessed == hits.sum()
+
+
+def test_a_stack_checks_every_scene_as_its_own_filter():
+    # Three clutters of one model in one stack: each row and path, tagged with its scene,
+    # gets the verdict and first sample of that scene's own checker; a clutter laid in one
+    # member afterwards is what the stack checks too.
+    from envs.models.filter import FilterStack, path_steps
+    from envs.models.scenes import CLUTTER_SLOTS, ClutterSlots, draw_clutter
+
+    arm = make_arm("anthropomorphic")
+    checkers, slots = [], []
+    for _ in range(3):
+        model = build_model("anthropomorphic", "random_clutter", seed=None)
+        checker = CollisionChecker(model, dof=arm.dof)
+        clutter = ClutterSlots(checker.model, CLUTTER_SLOTS)
+        checkers.append(checker)
+        slots.append(clutter)
+    references = [CollisionChecker(checker.model, dof=arm.dof, backend="loop")
+                  for checker in checkers]
+
+    def lay(i, seed):
+        slots[i].lay(draw_clutter(arm, seed, slots[i].base, CLUTTER_SLOTS), checkers[i].model,
+                     references[i].model)
+        checkers[i].refresh_static(slots[i].geoms)
+        references[i].refresh_static(slots[i].geoms)
+
+    for i, seed in enumerate((3, 4, 5)):
+        lay(i, seed)
+    stack = FilterStack([checker._filter for checker in checkers])
+    rng = np.random.default_rng(33)
+    q0, q1 = _paths(arm, rng, 600)
+    scenes = rng.integers(3, size=600)
+    for relaid in (False, True):
+        if relaid:
+            lay(1, 9)
+        steps = np.empty(600, dtype=np.int64)
+        path_steps(q0, q1, checkers[0].lever, checkers[0].resolution, steps)
+        first = stack.paths(scenes, q0, q1, steps, True)
+        verdicts = stack.collide(scenes, q0) > 0
+        for i in range(3):
+            mine = scenes == i
+            expected, fraction = references[i].check_paths(q0[mine], q1[mine])
+            np.testing.assert_array_equal(first[mine] >= 0, expected)
+            hit = expected
+            np.testing.assert_array_equal(first[mine][hit] / steps[mine][hit], fraction[hit])
+            np.testing.assert_array_equal(verdicts[mine], references[i].collides(q0[mine]))
+            assert 0.05 < expected.mean() < 0.95

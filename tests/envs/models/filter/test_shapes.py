@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import mujoco
 import numpy as np
 import pytest
@@ -102,3 +104,103 @@ def test_box_box_bound_never_exceeds_the_distance():
     assert close > 20
 
 
+
+
+# ------------------------------------------------------------------------ witnesses
+#: Geoms of the witness study: MuJoCo type, size (sizes of meshes: a box's half-sizes).
+_SHAPES = {
+    "sphere": mujoco.mjtGeom.mjGEOM_SPHERE,
+    "capsule": mujoco.mjtGeom.mjGEOM_CAPSULE,
+    "box": mujoco.mjtGeom.mjGEOM_BOX,
+    "mesh": mujoco.mjtGeom.mjGEOM_MESH,
+    "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER,
+    "ellipsoid": mujoco.mjtGeom.mjGEOM_ELLIPSOID,
+}
+
+
+def _pair_model(first: str, second: str, rng) -> mujoco.MjModel:
+    """Two bodies on slide joints (moving: frames recomputed), one geom each, margins
+    0.005 (a pair margin of 0.01), the checker's options."""
+    spec = mujoco.MjSpec()
+    spec.compiler.degree = False
+    spec.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_MIDPHASE
+    for name, shape in (("one", first), ("two", second)):
+        body = spec.worldbody.add_body()
+        body.name = name
+        body.add_joint().type = mujoco.mjtJoint.mjJNT_SLIDE
+        half = rng.uniform(0.03, 0.3, size=3)
+        geom = body.add_geom()
+        geom.name, geom.margin, geom.gap = name, 0.005, 0.0
+        if shape == "mesh":
+            corners = np.array(list(itertools.product((-1, 1), repeat=3))) * half
+            spec.add_mesh(name=f"{name}_box", uservert=corners.ravel().tolist())
+            geom.type, geom.meshname = _SHAPES["mesh"], f"{name}_box"
+        else:
+            geom.type, geom.size = _SHAPES[shape], half
+    return spec.compile()
+
+
+@pytest.mark.parametrize(("first", "second"), [
+    (a, b) for i, a in enumerate(_SHAPES) for b in list(_SHAPES)[i:]])
+def test_inner_shapes_closer_than_the_margin_are_mujocos_contacts(first, second):
+    # The witness promise (layout.inner, kernels._witnessed): wherever two inner shapes
+    # are closer than the pair's margin less the tolerance, mj_collision reports a
+    # contact — for every collider the scenes use; primitive box pairs and a capsule
+    # skewering a primitive box are excluded, as the filter excludes them.
+    from envs.models.filter.layout import WITNESS_TOLERANCE
+
+    rng = np.random.default_rng([list(_SHAPES).index(first), list(_SHAPES).index(second)])
+    model = _pair_model(first, second, rng)
+    data = mujoco.MjData(model)
+    geoms = [model.geom(name).id for name in ("one", "two")]
+    inner = [layout.inner(model, g) for g in geoms]
+    boxes = first == second == "box"
+    skewer_pair = {first, second} == {"capsule", "box"}
+    witnessed = contacts = 0
+    for _ in range(2000):
+        for name in ("one", "two"):
+            rotation = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+            rotation *= np.sign(np.linalg.det(rotation))
+            quat = np.zeros(4)
+            mujoco.mju_mat2Quat(quat, rotation.ravel())
+            model.body(name).pos, model.body(name).quat = rng.normal(scale=0.2, size=3), quat
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_collision(model, data)
+        contacts += data.ncon > 0
+        frames = [(tuple(data.geom_xpos[g] + data.geom_xmat[g].reshape(3, 3)
+                         @ model.geom_aabb[g][:3] * (model.geom_type[g] == _SHAPES["mesh"])),
+                   tuple(data.geom_xmat[g])) for g in geoms]
+        (ka, sa), (kb, sb) = inner
+        args = (ka, *frames[0], tuple(sa), kb, *frames[1], tuple(sb))
+        distance = shapes._inner_distance(*args)
+        if distance < 0.01 - WITNESS_TOLERANCE and not boxes:
+            if skewer_pair and shapes._skewers(*args):
+                continue
+            witnessed += 1
+            assert data.ncon > 0, (first, second, distance)
+    assert boxes or witnessed > 50
+    assert contacts > 50
+
+
+def test_box_box_distance_is_exact():
+    rng = np.random.default_rng(32)
+    for _ in range(300):
+        boxes = []
+        for _ in range(2):
+            rotation = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+            boxes.append((rng.normal(scale=0.3, size=3), rotation, rng.uniform(0.05, 0.4, 3)))
+        (c1, r1, h1), (c2, r2, h2) = boxes
+        value = shapes._box_box_distance(tuple(c1), tuple(r1.ravel()), *h1, tuple(c2),
+                                         tuple(r2.ravel()), *h2)
+        # Dense points of box 1 (its surface grid) against box 2, exactly: an upper bound.
+        grid = np.array(list(itertools.product(np.linspace(-1, 1, 9), repeat=3)))
+        points = c1 + (grid * h1) @ r1.T
+        local = (points - c2) @ r2
+        dense = np.linalg.norm(np.maximum(np.abs(local) - h2, 0.0), axis=1).min()
+        assert value <= dense + 1e-12
+        # And never below the separating-axis lower bound.
+        bound = shapes._box_box(tuple(c1), tuple(r1.ravel()), *h1, tuple(c2), tuple(r2.ravel()),
+                                *h2)
+        assert value >= bound - 1e-12
+        if bound > 0:
+            assert value == pytest.approx(dense, abs=0.06 * h1.max())

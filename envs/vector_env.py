@@ -1,0 +1,350 @@
+"""The natively batched vector env (see :class:`IKBranchVectorEnv`)."""
+
+from __future__ import annotations
+
+import numbers
+from typing import Any, ClassVar
+
+import numpy as np
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from envs.episodes import EpisodeBatch, Steps
+from envs.ik_branch_env import IKBranchEnv
+from envs.models.filter import FilterStack, path_steps
+
+
+class IKBranchVectorEnv(VectorEnv):
+    """``num_envs`` copies of :class:`~envs.ik_branch_env.IKBranchEnv` advanced together.
+
+    ``gym.make_vec(ID, num_envs=N, vectorization_mode="vector_entry_point")`` makes one
+    for every registered id (``autoreset_mode="same_step"`` and any of the env's keyword
+    arguments may be added). Sub-env i of a vector env reset with ``seed=s`` is the single
+    env reset with ``seed=s + i``, bit for bit: the same observations, rewards,
+    terminations and infos, through every autoreset (tested on every id against
+    Gymnasium's ``SyncVectorEnv`` of single envs).
+
+    ## How it runs
+    Every sub-env keeps its own scene (clutter), random generator, task generator and
+    caches, and runs its episode in one row of a shared :class:`~envs.episodes.EpisodeBatch`.
+    A step advances all rows at once: the chosen moves are paid from what was priced
+    before, then the new states are surveyed together — every path of every sub-env in one
+    call of the compiled collision filter (its scenes stacked, :class:`FilterStack`),
+    every move priced in one call, the onward free travel in one call per round, the
+    observations in one assembly. Only a reset's task drawing runs per sub-env. Tasks
+    from a finite pose set (the milling cell's tool changes, a waypoint file) check paths
+    through each sub-env's path cache instead, where they are met again.
+
+    ## Spaces
+    ``single_observation_space`` and ``single_action_space`` are the env's (``Box`` and
+    ``Discrete(K)``); ``observation_space`` (N, size) and ``action_space``
+    ``MultiDiscrete([K] * N)``.
+
+    ## Masks
+    ``info["action_mask"]`` (N, K) bool at every reset and step (the valid branches of each
+    sub-env's next waypoint; all branches once an episode is over), and
+    ``action_masks()``, the same array: a masked learner needs no round trip. An action
+    outside ``[0, K)`` is refused with the sub-env named; an action outside its mask is
+    the env's invalid branch (``invalid_penalty``, the episode ends), or refused with
+    ``enforce_masks=True``.
+
+    ## Autoreset
+    As Gymnasium 1.x defines it (``metadata["autoreset_mode"]``): ``"next_step"`` (the
+    default) resets a sub-env on the step after its episode ended, ignoring that step's
+    action (reward 0, not terminated, the reset's info); ``"same_step"`` resets it within
+    the step that ended it, returning the new episode's first observation and the reset's
+    info, with the last observation and step info in ``info["final_obs"]`` and
+    ``info["final_info"]``; ``"disabled"`` leaves it to ``reset(options={"reset_mask":
+    mask})``. Infos are batched as ``SyncVectorEnv`` batches them (an array per key, and
+    ``info["_key"]`` marking the sub-envs that reported it).
+
+    ## Arguments
+    ``num_envs`` (≥ 1), ``autoreset_mode`` (an ``AutoresetMode``, its value or its name:
+    ``"next_step"``, ``"same_step"``, ``"disabled"``), ``enforce_masks`` (default False), and every
+    argument of ``IKBranchEnv`` (its docstring), the same for all sub-envs.
+    """
+
+    metadata: ClassVar[dict] = {
+        **IKBranchEnv.metadata, "autoreset_mode": AutoresetMode.NEXT_STEP,
+    }
+
+    def __init__(self, num_envs: int = 1, autoreset_mode: str | AutoresetMode =
+                 AutoresetMode.NEXT_STEP, enforce_masks: bool = False, **kwargs: Any) -> None:
+        if isinstance(num_envs, bool) or not isinstance(num_envs, numbers.Integral) or num_envs < 1:
+            raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+        mode = _autoreset_mode(autoreset_mode)
+        self.num_envs = int(num_envs)
+        self.autoreset_mode, self.enforce_masks = mode, bool(enforce_masks)
+        #: The sub-envs (``IKBranchEnv``): their scenes, generators, ladders, renderers.
+        self.envs = [IKBranchEnv(**kwargs) for _ in range(self.num_envs)]
+        first = self.envs[0]
+        self.metadata = {**type(self).metadata, "autoreset_mode": mode}
+        self.render_mode = first.render_mode
+        self.single_observation_space = first.observation_space
+        self.single_action_space = first.action_space
+        self.observation_space = batch_space(first.observation_space, self.num_envs)
+        self.action_space = batch_space(first.action_space, self.num_envs)
+        self.observation_layout = first.observation_layout
+        self.n_branches = first.arm.n_branches
+        self._episodes = EpisodeBatch(self.num_envs, first.n_waypoints, first.pricer,
+                                      first._observations, self._line_paths)
+        for row, env in enumerate(self.envs):  # each sub-env runs its episode in its row
+            env._episode = self._episodes.view(row, env._line_paths)
+        filters = [env.checker._filter for env in self.envs]
+        self._stack = None if any(f is None for f in filters) else FilterStack(filters)
+        self._cached = bool(getattr(first._generator, "finite_poses", False))
+        self._lever, self._resolution = first.checker.lever, first.checker.resolution
+        self._rows = np.arange(self.num_envs)
+        self._ended = np.zeros(self.num_envs, dtype=bool)
+        self._started = False
+
+    # ---------------------------------------------------------------------------- API
+    def reset(self, *, seed: int | list[int | None] | None = None,
+              options: dict[str, Any] | None = None):
+        """Reset every sub-env (``seed=s``: sub-env i with ``s + i``; a list: one seed
+        each), or with ``options={"reset_mask": mask}`` only those where ``mask`` (N,)
+        bool is True (the others keep their state)."""
+        seeds = self._seeds(seed)
+        if isinstance(seed, numbers.Integral):  # the vector env's own generator, as Gymnasium's
+            super().reset(seed=int(seed))
+        options = dict(options or {})
+        rows = self._rows
+        if "reset_mask" in options:
+            rows = np.flatnonzero(self._reset_mask(options.pop("reset_mask")))
+        infos = self._begin(rows, [seeds[i] for i in rows])
+        self._ended[rows] = False
+        self._episodes.survey(rows)
+        self._started = True
+        masks = self._episodes.masks(self._rows)
+        _put(infos, "action_mask", rows, masks[rows])
+        return self._episodes.observation.copy(), infos
+
+    def step(self, actions):
+        """Advance every sub-env by its action (see the class docstring)."""
+        if not self._started:
+            raise RuntimeError("call reset() before step()")
+        actions = self._check_actions(actions)
+        n = self.num_envs
+        rewards = np.zeros(n)
+        terminated = np.zeros(n, dtype=bool)
+        infos: dict[str, Any] = {}
+        if self.autoreset_mode == AutoresetMode.NEXT_STEP:
+            resetting = np.flatnonzero(self._ended)
+        else:
+            if self.autoreset_mode == AutoresetMode.DISABLED and self._ended.any():
+                ended = np.flatnonzero(self._ended).tolist()
+                raise RuntimeError(f"sub-envs {ended} have ended their episodes: reset them "
+                                   "with reset(options={'reset_mask': mask})")
+            resetting = np.zeros(0, dtype=np.int64)
+        stepping = np.flatnonzero(~self._ended) if len(resetting) else self._rows
+        if len(resetting):
+            infos = self._begin(resetting, [None] * len(resetting))
+        steps = self._episodes.advance(stepping, actions[stepping])
+        rewards[stepping], terminated[stepping] = steps.reward, steps.terminated
+        done = stepping[steps.terminated]
+        if self.autoreset_mode == AutoresetMode.SAME_STEP and len(done):
+            self._episodes.survey(done)  # their last observation
+            final_obs = np.full(n, None, dtype=object)
+            final_obs[done] = list(self._episodes.observation[done].copy())
+            masks = self._episodes.masks(done)
+            final_info = _step_infos(n, stepping, steps, masks_of=(done, masks),
+                                     only=steps.terminated)
+            infos = self._begin(done, [None] * len(done))
+            infos["final_obs"], infos["_final_obs"] = final_obs, _mask(n, done)
+            infos["final_info"], infos["_final_info"] = final_info, _mask(n, done)
+            going = stepping[~steps.terminated]
+            _merge(infos, _step_infos(n, stepping, steps, only=~steps.terminated))
+            self._ended[done] = False
+            surveyed = np.concatenate([going, done])
+        else:
+            _merge(infos, _step_infos(n, stepping, steps))
+            self._ended[resetting] = False
+            self._ended[done] = True
+            surveyed = self._rows if len(resetting) else stepping
+        self._episodes.survey(surveyed)
+        masks = self._episodes.masks(self._rows)
+        _put(infos, "action_mask", self._rows, masks)
+        truncated = np.zeros(n, dtype=bool)
+        return self._episodes.observation.copy(), rewards, terminated, truncated, infos
+
+    def action_masks(self) -> np.ndarray:
+        """(N, K) bool: each sub-env's valid branches now (``info["action_mask"]``)."""
+        if not self._started:
+            raise RuntimeError("call reset() before action_masks()")
+        return self._episodes.masks(self._rows)
+
+    def render(self) -> tuple | None:
+        """Each sub-env's frame (``render_mode="rgb_array"``), else None."""
+        if self.render_mode != "rgb_array":
+            return None
+        return tuple(env.render() for env in self.envs)
+
+    def call(self, name: str, *args: Any, **kwargs: Any) -> tuple:
+        """Each sub-env's ``name``: called with the arguments if callable, else its value."""
+        values = []
+        for env in self.envs:
+            value = getattr(env, name)
+            values.append(value(*args, **kwargs) if callable(value) else value)
+        return tuple(values)
+
+    def get_attr(self, name: str) -> tuple:
+        """Each sub-env's attribute ``name``."""
+        return tuple(getattr(env, name) for env in self.envs)
+
+    def set_attr(self, name: str, values: Any) -> None:
+        """Set ``name`` on every sub-env: one value each (a list or tuple of N) or the
+        same value for all."""
+        if not isinstance(values, list | tuple):
+            values = [values] * self.num_envs
+        if len(values) != self.num_envs:
+            raise ValueError(f"set_attr needs {self.num_envs} values, got {len(values)}")
+        for env, value in zip(self.envs, values, strict=True):
+            setattr(env, name, value)
+
+    def close_extras(self, **kwargs: Any) -> None:
+        for env in self.envs:
+            env.close()
+
+    # ----------------------------------------------------------------------- helpers
+    def _seeds(self, seed) -> list[int | None]:
+        if seed is None:
+            return [None] * self.num_envs
+        if isinstance(seed, numbers.Integral) and not isinstance(seed, bool):
+            return [int(seed) + i for i in range(self.num_envs)]
+        seeds = list(seed)
+        if len(seeds) != self.num_envs:
+            raise ValueError(f"seed must be an int, None or {self.num_envs} seeds, got "
+                             f"{len(seeds)}")
+        return seeds
+
+    def _reset_mask(self, mask) -> np.ndarray:
+        if not isinstance(mask, np.ndarray):
+            raise TypeError(f"reset_mask must be a numpy array, got {type(mask).__name__}")
+        if mask.shape != (self.num_envs,):
+            raise ValueError(f"reset_mask must have shape ({self.num_envs},), got {mask.shape}")
+        if mask.dtype != np.bool_:
+            raise TypeError(f"reset_mask must be a bool array, got dtype {mask.dtype}")
+        if not mask.any():
+            raise ValueError("reset_mask must mark at least one sub-env to reset")
+        return mask
+
+    def _check_actions(self, actions) -> np.ndarray:
+        """``actions`` as (N,) int64, ``ValueError`` naming what is wrong: the shape, a
+        non-integer dtype, a branch outside [0, K) (or, with ``enforce_masks``, outside its
+        sub-env's mask)."""
+        array = np.asarray(actions)
+        if array.shape != (self.num_envs,):
+            raise ValueError(f"actions must have shape ({self.num_envs},), one branch per "
+                             f"sub-env, got {array.shape}")
+        if array.dtype.kind not in "iu":
+            raise ValueError(f"actions must be integers (branch indices), got dtype "
+                             f"{array.dtype}")
+        k = self.n_branches
+        outside = np.flatnonzero((array < 0) | (array >= k))
+        if len(outside):
+            i = int(outside[0])
+            raise ValueError(f"action {int(array[i])} of sub-env {i} is not a branch index "
+                             f"in [0, {k})")
+        actions = array.astype(np.int64)
+        if self.enforce_masks:
+            live = np.flatnonzero(~self._ended)
+            masks = self._episodes.masks(live)
+            bad = np.flatnonzero(~masks[np.arange(len(live)), actions[live]])
+            if len(bad):
+                i = int(live[bad[0]])
+                raise ValueError(f"action {int(actions[i])} of sub-env {i} is outside its "
+                                 f"mask (valid branches {np.flatnonzero(masks[bad[0]]).tolist()})")
+        return actions
+
+    def _begin(self, rows: np.ndarray, seeds: list[int | None]) -> dict[str, Any]:
+        """New episodes in sub-envs ``rows`` (each with its seed): their batched reset infos
+        (without the masks)."""
+        infos: dict[str, Any] = {}
+        n = self.num_envs
+        for row, seed in zip(rows.tolist(), seeds, strict=True):
+            for key, value in self.envs[row]._new_episode(seed).items():
+                _put(infos, key, np.array([row]), np.array([value]), n=n)
+        return infos
+
+    def _line_paths(self, lines: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+        """Path verdicts of moves of sub-envs ``lines`` (``envs.episodes``): one call of the
+        stacked filter, or through each sub-env's path cache for tasks met again."""
+        if self._cached or self._stack is None:
+            out = np.empty(len(lines), dtype=bool)
+            for line in np.unique(lines).tolist():
+                mine = lines == line
+                out[mine] = self.envs[line]._line_paths(lines[mine], starts[mine], ends[mine])
+            return out
+        starts, ends = np.ascontiguousarray(starts), np.ascontiguousarray(ends)
+        steps = np.empty(len(ends), dtype=np.int64)
+        path_steps(starts, ends, self._lever, self._resolution, steps)
+        return self._stack.paths(lines.astype(np.int64), starts, ends, steps, False) >= 0
+
+
+def _autoreset_mode(value: str | AutoresetMode) -> AutoresetMode:
+    """An ``AutoresetMode`` from itself, its value ("SameStep") or its name ("same_step")."""
+    if isinstance(value, AutoresetMode):
+        return value
+    for mode in AutoresetMode:
+        if isinstance(value, str) and value in (mode.value, mode.name, mode.name.lower()):
+            return mode
+    modes = ", ".join(f"{m.name.lower()!r}" for m in AutoresetMode)
+    raise ValueError(f"autoreset_mode must be one of {modes} (or an AutoresetMode), got "
+                     f"{value!r}")
+
+
+def _mask(n: int, rows: np.ndarray) -> np.ndarray:
+    mask = np.zeros(n, dtype=bool)
+    mask[rows] = True
+    return mask
+
+
+def _put(infos: dict[str, Any], key: str, rows: np.ndarray, values: np.ndarray,
+         n: int | None = None) -> None:
+    """``infos[key][rows] = values`` and ``infos["_" + key][rows] = True``, the arrays made
+    as ``VectorEnv._add_info`` makes them (zeros of the values' dtype and shape)."""
+    if key not in infos:
+        count = len(infos[next(iter(infos))]) if n is None and infos else n
+        if count is None:
+            count = len(rows)
+        values = np.asarray(values)
+        infos[key] = np.zeros((count, *values.shape[1:]), dtype=values.dtype)
+        infos["_" + key] = np.zeros(count, dtype=bool)
+    infos[key][rows] = values
+    infos["_" + key][rows] = True
+
+
+def _merge(infos: dict[str, Any], more: dict[str, Any]) -> None:
+    """Add the batched ``more`` into ``infos`` (keys both have: rows of ``more``'s mask)."""
+    for key, value in more.items():
+        if key.startswith("_"):
+            continue
+        mask = more["_" + key]
+        if key in infos:
+            infos[key][mask] = value[mask]
+            infos["_" + key] |= mask
+        else:
+            infos[key], infos["_" + key] = value, mask
+
+
+def _step_infos(n: int, rows: np.ndarray, steps: Steps, masks_of=None,
+                only: np.ndarray | None = None) -> dict[str, Any]:
+    """The batched step infos of ``rows`` (those with ``only``), as each sub-env's
+    ``IKBranchEnv.step`` info batched by ``SyncVectorEnv``; ``masks_of`` (rows, masks)
+    adds their action masks."""
+    pick = slice(None) if only is None else only
+    picked = rows[pick]
+    infos: dict[str, Any] = {}
+    if not len(picked):
+        return infos
+    columns = {"waypoint": steps.waypoint, "branch": steps.branch, "travel": steps.travel,
+               "time": steps.time, **steps.terms, "collision": steps.collision,
+               "invalid": steps.invalid}
+    for key, value in columns.items():
+        _put(infos, key, picked, value[pick], n=n)
+    ended = steps.terminated[pick]
+    if ended.any():
+        _put(infos, "is_success", picked[ended], steps.success[pick][ended], n=n)
+    if masks_of is not None:
+        _put(infos, "action_mask", masks_of[0], masks_of[1], n=n)
+    return infos

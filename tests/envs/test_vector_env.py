@@ -1,0 +1,167 @@
+"""The natively batched vector env is Gymnasium's ``SyncVectorEnv`` of single envs, bit
+for bit: observations, rewards, terminations, truncations and batched infos, through
+autoresets of either mode, with masks from ``info["action_mask"]`` (some actions outside
+them, as an unmasked learner picks)."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import data_equivalence
+from gymnasium.vector import AutoresetMode
+
+import envs
+from envs.vector_env import IKBranchVectorEnv
+from tests.envs.env_cases import FAST, IDS
+
+MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
+
+
+def _pair(env_id: str, n: int, mode: AutoresetMode, **kwargs):
+    native = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point",
+                          autoreset_mode=mode, **kwargs)
+    sync = gym.make_vec(env_id, num_envs=n, vectorization_mode="sync",
+                        vector_kwargs={"autoreset_mode": mode}, **kwargs)
+    return native, sync
+
+
+def _actions(masks: np.ndarray, rng: np.random.Generator, p_unmasked: float) -> np.ndarray:
+    """Per row a random valid branch, or with probability ``p_unmasked`` any branch."""
+    valid = (rng.random(masks.shape) * masks).argmax(axis=1)
+    anything = rng.integers(masks.shape[1], size=len(masks))
+    return np.where(rng.random(len(masks)) < p_unmasked, anything, valid)
+
+
+@pytest.mark.parametrize("mode", MODES, ids=lambda m: m.name.lower())
+@pytest.mark.parametrize("env_id", IDS)
+def test_sub_envs_are_the_single_envs_bit_for_bit(env_id, mode):
+    native, sync = _pair(env_id, 3, mode, **FAST)
+    first = native.reset(seed=11)
+    assert data_equivalence(first, sync.reset(seed=11), exact=True)
+    infos = first[1]
+    rng = np.random.default_rng(12)
+    ends = 0
+    for _ in range(30 if "UR5e" not in env_id else 12):
+        actions = _actions(infos["action_mask"], rng, p_unmasked=0.1)
+        step = native.step(actions)
+        assert data_equivalence(step, sync.step(actions), exact=True)
+        infos = step[4]
+        np.testing.assert_array_equal(native.unwrapped.action_masks(), infos["action_mask"])
+        ends += int(step[2].sum())
+    assert ends >= 2  # autoresets were exercised
+    native.close()
+    sync.close()
+
+
+def test_reset_masks_and_disabled_autoreset_are_gymnasiums():
+    mode = AutoresetMode.DISABLED
+    native, sync = _pair("IKBranch/Cartesian-v2", 4, mode, **FAST)
+    assert data_equivalence(native.reset(seed=3), sync.reset(seed=3), exact=True)
+    rng = np.random.default_rng(4)
+    masks = native.unwrapped.action_masks()
+    for _ in range(25):
+        actions = _actions(masks, rng, p_unmasked=0.0)
+        step = native.step(actions)
+        assert data_equivalence(step, sync.step(actions), exact=True)
+        masks = step[4]["action_mask"]
+        if step[2].any():
+            mask = step[2].copy()
+            again = native.reset(options={"reset_mask": mask})
+            assert data_equivalence(again, sync.reset(options={"reset_mask": mask.copy()}),
+                                    exact=True)
+            masks = again[1]["action_mask"]
+    with pytest.raises(TypeError, match="bool"):
+        native.reset(options={"reset_mask": np.ones(4, dtype=int)})
+    with pytest.raises(ValueError, match="shape"):
+        native.reset(options={"reset_mask": np.ones(3, dtype=bool)})
+    with pytest.raises(ValueError, match="at least one"):
+        native.reset(options={"reset_mask": np.zeros(4, dtype=bool)})
+
+
+def test_disabled_autoreset_refuses_to_step_an_ended_episode():
+    vec = IKBranchVectorEnv(num_envs=2, autoreset_mode="disabled", arm="cartesian",
+                            n_waypoints=1)
+    _, infos = vec.reset(seed=0)
+    vec.step(infos["action_mask"].argmax(axis=1))  # one waypoint: both episodes end
+    with pytest.raises(RuntimeError, match=r"sub-envs \[0, 1\] have ended"):
+        vec.step(np.zeros(2, dtype=np.int64))
+
+
+def test_masks_ride_in_every_info_of_the_single_env_too():
+    env = gym.make("IKBranch/KukaKR6-v0")
+    _, info = env.reset(seed=5)
+    for _ in range(20):
+        mask = info["action_mask"]
+        np.testing.assert_array_equal(mask, env.unwrapped.action_masks())
+        assert mask.dtype == bool and mask.shape == (env.action_space.n,)
+        _, _, terminated, _, info = env.step(int(np.flatnonzero(mask)[0]))
+        if terminated:
+            assert info["action_mask"].all()  # the episode is over: any action
+            _, info = env.reset()
+
+
+def test_spaces_and_metadata():
+    vec = gym.make_vec("IKBranch/ToolTransfer-v1", num_envs=5,
+                       vectorization_mode="vector_entry_point", autoreset_mode="same_step")
+    single = gym.make("IKBranch/ToolTransfer-v1")
+    assert vec.single_observation_space == single.observation_space
+    assert vec.single_action_space == single.action_space
+    assert vec.observation_space.shape == (5, *single.observation_space.shape)
+    assert isinstance(vec.action_space, gym.spaces.MultiDiscrete)
+    assert vec.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP
+    obs, _ = vec.reset(seed=0)
+    assert vec.observation_space.contains(obs)
+    assert vec.get_attr("n_waypoints") == (8,) * 5
+    assert len(vec.call("action_masks")) == 5
+
+
+@pytest.mark.parametrize("env_id", ["IKBranch/Cartesian-v2", "IKBranch/IRB4600ToolTransfer-v0"])
+def test_every_registered_id_has_a_vector_entry_point(env_id):
+    for registered in envs.ENV_IDS:
+        assert gym.spec(registered).vector_entry_point == "envs.vector_env:IKBranchVectorEnv"
+    vec = gym.make_vec(env_id, num_envs=2)  # the default mode for such an id
+    assert isinstance(vec.unwrapped, IKBranchVectorEnv)
+
+
+def test_bad_input_is_refused_with_its_name():
+    with pytest.raises(ValueError, match="num_envs must be an integer >= 1"):
+        IKBranchVectorEnv(num_envs=0)
+    with pytest.raises(ValueError, match="autoreset_mode"):
+        IKBranchVectorEnv(num_envs=1, autoreset_mode="sometimes")
+    vec = IKBranchVectorEnv(num_envs=3, arm="anthropomorphic", **FAST)
+    with pytest.raises(RuntimeError, match="reset"):
+        vec.step(np.zeros(3, dtype=np.int64))
+    vec.reset(seed=0)
+    with pytest.raises(ValueError, match=r"shape \(3,\)"):
+        vec.step(np.zeros(2, dtype=np.int64))
+    with pytest.raises(ValueError, match="integers"):
+        vec.step(np.zeros(3))
+    with pytest.raises(ValueError, match=r"action 8 of sub-env 1 is not a branch index"):
+        vec.step(np.array([0, 8, 0]))
+    with pytest.raises(ValueError, match="seed"):
+        vec.reset(seed=[1, 2])
+    # A KR 6's turn branches outside the limits are masked: an action there is refused
+    # with enforce_masks, and is the env's invalid move (as in the single env) without.
+    kwargs = {"arm": "kuka_kr6_r700", **FAST}
+    strict = IKBranchVectorEnv(num_envs=2, enforce_masks=True, **kwargs)
+    loose = IKBranchVectorEnv(num_envs=2, **kwargs)
+    _, infos = strict.reset(seed=0)
+    loose.reset(seed=0)
+    masks = infos["action_mask"]
+    outside = int(np.flatnonzero(~masks[1])[0])
+    actions = np.array([int(masks[0].argmax()), outside])
+    with pytest.raises(ValueError, match=f"action {outside} of sub-env 1 is outside its mask"):
+        strict.step(actions)
+    _, reward, terminated, _, info = loose.step(actions)
+    assert terminated[1] and info["invalid"][1] and reward[1] < -loose.envs[1].invalid_penalty
+
+
+def test_rendering_gives_every_sub_envs_frame():
+    vec = IKBranchVectorEnv(num_envs=2, render_mode="rgb_array", width=64, height=48,
+                            arm="cartesian", **FAST)
+    vec.reset(seed=0)
+    frames = vec.render()
+    assert len(frames) == 2 and all(f.shape == (48, 64, 3) for f in frames)
+    assert frames[0].std() > 0
+    vec.close()
