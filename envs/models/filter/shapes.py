@@ -208,10 +208,11 @@ def _segment_box(ax, ay, az, bx, by, bz, c, r, h0, h1, h2):
 
 
 @njit
-def _box_box(c1, r1, a0, a1, a2, c2, r2, b0, b1, b2):
+def _box_box(c1, r1, a0, a1, a2, c2, r2, b0, b1, b2, enough):
     """A lower bound on the distance of two boxes: the largest gap of their projections on
-    the 15 separating-axis candidates (face normals and edge cross products); a
-    projection never lengthens a distance."""
+    the 15 separating-axis candidates (face normals first, then edge cross products); a
+    projection never lengthens a distance. It stops as soon as a gap reaches ``enough``
+    (the caller needs no more: the bound is still one)."""
     dx, dy, dz = c2[0] - c1[0], c2[1] - c1[1], c2[2] - c1[2]
     best = -math.inf
     for k in range(15):
@@ -237,6 +238,8 @@ def _box_box(c1, r1, a0, a1, a2, c2, r2, b0, b1, b2):
         gap = abs(lx * dx + ly * dy + lz * dz) - extent
         if gap > best:
             best = gap
+            if best >= enough:
+                return best
     return best
 
 
@@ -253,15 +256,16 @@ def _capsule_ends(c, r, half):
 
 
 @njit
-def _bound_shapes(ka, ca, ra, sa0, sa1, sa2, kb, cb, rb, sb0, sb1, sb2):
-    """Lower bound on the distance of two containers of kinds SPHERE/CAPSULE/BOX/PLANE."""
+def _bound_shapes(ka, ca, ra, sa0, sa1, sa2, kb, cb, rb, sb0, sb1, sb2, enough):
+    """Lower bound on the distance of two containers of kinds SPHERE/CAPSULE/BOX/PLANE
+    (refined no further once it reaches ``enough``, where refining costs: box–box)."""
     if ka > kb:
-        return _bound_ordered(kb, cb, rb, sb0, sb1, sb2, ka, ca, ra, sa0, sa1, sa2)
-    return _bound_ordered(ka, ca, ra, sa0, sa1, sa2, kb, cb, rb, sb0, sb1, sb2)
+        return _bound_ordered(kb, cb, rb, sb0, sb1, sb2, ka, ca, ra, sa0, sa1, sa2, enough)
+    return _bound_ordered(ka, ca, ra, sa0, sa1, sa2, kb, cb, rb, sb0, sb1, sb2, enough)
 
 
 @njit
-def _bound_ordered(ka, ca, ra, sa0, sa1, sa2, kb, cb, rb, sb0, sb1, sb2):
+def _bound_ordered(ka, ca, ra, sa0, sa1, sa2, kb, cb, rb, sb0, sb1, sb2, enough):
     """:func:`_bound_shapes` with ``ka <= kb``."""
     if ka == SPHERE:
         if kb == SPHERE:
@@ -287,7 +291,7 @@ def _bound_ordered(ka, ca, ra, sa0, sa1, sa2, kb, cb, rb, sb0, sb1, sb2):
                    _plane_height(e[3], e[4], e[5], cb, rb)) - sa0
     if ka == BOX:
         if kb == BOX:
-            return _box_box(ca, ra, sa0, sa1, sa2, cb, rb, sb0, sb1, sb2)
+            return _box_box(ca, ra, sa0, sa1, sa2, cb, rb, sb0, sb1, sb2, enough)
         reach = (sa0 * abs(rb[2] * ra[0] + rb[5] * ra[3] + rb[8] * ra[6])
                  + sa1 * abs(rb[2] * ra[1] + rb[5] * ra[4] + rb[8] * ra[7])
                  + sa2 * abs(rb[2] * ra[2] + rb[5] * ra[5] + rb[8] * ra[8]))
@@ -296,10 +300,11 @@ def _bound_ordered(ka, ca, ra, sa0, sa1, sa2, kb, cb, rb, sb0, sb1, sb2):
 
 
 @njit
-def _bound_pair(ka, ca, ra, sa, kb, cb, rb, sb):
+def _bound_pair(ka, ca, ra, sa, kb, cb, rb, sb, enough):
     """Lower bound on the distance of two slots' containers, any kinds: a cylinder is held
     by the capsule of its radius over its axis and by its box, so the larger of the two
-    bounds holds; an unbounded kind gives −inf (MuJoCo decides)."""
+    bounds holds; an unbounded kind gives −inf (MuJoCo decides). A bound that reaches
+    ``enough`` may stop there (``math.inf``: the best bound)."""
     if ka == UNBOUNDED or kb == UNBOUNDED or (ka == PLANE and kb == PLANE):
         return -math.inf
     best = -math.inf
@@ -312,7 +317,7 @@ def _bound_pair(ka, ca, ra, sa, kb, cb, rb, sb):
             if kb == CYLINDER:
                 tb, b0, b1, b2 = ((BOX, sb[0], sb[0], sb[1]) if use_b
                                   else (CAPSULE, sb[0], sb[1], 0.0))
-            value = _bound_shapes(ta, ca, ra, a0, a1, a2, tb, cb, rb, b0, b1, b2)
+            value = _bound_shapes(ta, ca, ra, a0, a1, a2, tb, cb, rb, b0, b1, b2, enough)
             if value > best:
                 best = value
     return best
@@ -368,7 +373,8 @@ def _inner_distance(ka, ca, ra, sa, kb, cb, rb, sb):
         return _box_box_distance(ca, ra, sa[0], sa[1], sa[2], cb, rb, sb[0], sb[1], sb[2])
     # Every other pair of these kinds is measured exactly (the separating-axis bound is
     # used for box–box only).
-    return _bound_shapes(ka, ca, ra, sa[0], sa[1], sa[2], kb, cb, rb, sb[0], sb[1], sb[2])
+    return _bound_shapes(ka, ca, ra, sa[0], sa[1], sa[2], kb, cb, rb, sb[0], sb[1], sb[2],
+                         math.inf)
 
 
 @njit

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from envs.jit import njit
 
 from .layout import _SLIDE
@@ -149,13 +147,16 @@ def _local_speed(a, motion, xpos, xmat, jnt_pos, jnt_axis, jnt_type, wpos, radiu
         # The hinge's anchor and axis in the world (a turn about it leaves both in place).
         px, py, pz = jnt_pos[j, 0], jnt_pos[j, 1], jnt_pos[j, 2]
         ax, ay, az = jnt_axis[j, 0], jnt_axis[j, 1], jnt_axis[j, 2]
-        d = np.empty(3)
-        u = np.empty(3)
-        for i in range(3):
-            d[i] = wpos[a, i] - (xpos[b, i] + xmat[b, i, 0] * px + xmat[b, i, 1] * py
-                                 + xmat[b, i, 2] * pz)
-            u[i] = xmat[b, i, 0] * ax + xmat[b, i, 1] * ay + xmat[b, i, 2] * az
-        c0, c1, c2 = d[1] * u[2] - d[2] * u[1], d[2] * u[0] - d[0] * u[2], d[0] * u[1] - d[1] * u[0]
+        d0 = wpos[a, 0] - (xpos[b, 0] + xmat[b, 0, 0] * px + xmat[b, 0, 1] * py
+                           + xmat[b, 0, 2] * pz)
+        d1 = wpos[a, 1] - (xpos[b, 1] + xmat[b, 1, 0] * px + xmat[b, 1, 1] * py
+                           + xmat[b, 1, 2] * pz)
+        d2 = wpos[a, 2] - (xpos[b, 2] + xmat[b, 2, 0] * px + xmat[b, 2, 1] * py
+                           + xmat[b, 2, 2] * pz)
+        u0 = xmat[b, 0, 0] * ax + xmat[b, 0, 1] * ay + xmat[b, 0, 2] * az
+        u1 = xmat[b, 1, 0] * ax + xmat[b, 1, 1] * ay + xmat[b, 1, 2] * az
+        u2 = xmat[b, 2, 0] * ax + xmat[b, 2, 1] * ay + xmat[b, 2, 2] * az
+        c0, c1, c2 = d1 * u2 - d2 * u1, d2 * u0 - d0 * u2, d0 * u1 - d1 * u0
         speed += dq[j] * (math.sqrt(c0 * c0 + c1 * c1 + c2 * c2) + radius)
     return speed
 

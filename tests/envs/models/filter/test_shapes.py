@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import math
 
 import mujoco
 import numpy as np
@@ -43,14 +44,15 @@ def test_pair_bounds_never_exceed_mujocos_distance(arm_name, scene):
             frame_a = (kernels._centre(wpos, a), kernels._rotation(wrot, a))
             frame_b = (kernels._centre(wpos, b), kernels._rotation(wrot, b))
             bound = shapes._bound_pair(slot_type[a], *frame_a, kernels._size(slot_size, a),
-                                       slot_type[b], *frame_b, kernels._size(slot_size, b))
+                                       slot_type[b], *frame_b, kernels._size(slot_size, b),
+                                       math.inf)
             # A bound only has to be right about separation (it proves "farther than
             # the margin"); for a penetrating pair it only has to be ≤ 0.
             assert bound <= max(distance, 0.0) + 1e-9, (model.geom(int(g1)).name,
                                                         model.geom(int(g2)).name)
             sphere = shapes._bound_pair(layout.SPHERE, frame_a[0], frame_a[1],
                                         (slot_radius[a], 0.0, 0.0), slot_type[b], *frame_b,
-                                        kernels._size(slot_size, b))
+                                        kernels._size(slot_size, b), math.inf)
             assert sphere <= max(distance, 0.0) + 1e-9
             exact_ones += slot_type[a] == slot_type[b] == layout.CAPSULE
             if slot_type[a] == slot_type[b] == layout.CAPSULE and distance > 1e-3:
@@ -98,7 +100,7 @@ def test_box_box_bound_never_exceeds_the_distance():
                   for g in geoms]
         distance = mujoco.mj_geomDistance(model, data, *geoms, 10.0, None)
         (c1, r1, *h1), (c2, r2, *h2) = frames
-        bound = shapes._box_box(c1, r1, *h1, c2, r2, *h2)
+        bound = shapes._box_box(c1, r1, *h1, c2, r2, *h2, math.inf)
         assert bound <= max(distance, 0.0) + 1e-7
         close += 0 < distance < 0.2
     assert close > 20
@@ -200,7 +202,7 @@ def test_box_box_distance_is_exact():
         assert value <= dense + 1e-12
         # And never below the separating-axis lower bound.
         bound = shapes._box_box(tuple(c1), tuple(r1.ravel()), *h1, tuple(c2), tuple(r2.ravel()),
-                                *h2)
+                                *h2, math.inf)
         assert value >= bound - 1e-12
         if bound > 0:
             assert value == pytest.approx(dense, abs=0.06 * h1.max())
