@@ -1,24 +1,41 @@
-"""Collision-check throughput: the compiled filter beside the exact Python backends.
+"""Collision-check throughput: the compiled filter beside the exact Python backends and
+beside MuJoCo itself.
 
     .venv/bin/python benchmarks/collision_throughput.py [--configs 20000] [--paths 300]
-                                                        [--repeats 3]
+        [--repeats 3] [--env-paths 500] [--ids IKBranch/UR5e-v0 ...]
 
 Every row of one kind checks the same inputs, and the script asserts that every backend
 returns the same answers before it times them (contact counts, verdicts, first colliding
-samples). Backends: ``compiled`` (bounds, MuJoCo for what they cannot prove; verdict-only
-calls stop at any contact, first-sample calls find the first), ``loop`` (the advancing
-Python loop: the exact reference the compiled backend is tested equal to), ``batch``
+samples). Backends: ``compiled`` (the filter: three deciders per sample — bounds prove it
+free, inner shapes, "witnesses", prove it in contact, and ``mj_kinematics`` +
+``mj_collision`` decide only where neither proof holds; verdict-only calls stop at any
+contact, first-sample calls find the first), ``loop`` (the advancing Python loop: the
+exact reference the compiled backend is tested equal to), ``batch``
 (``mujoco.batch.Batch``, every grid sample) and an every-sample Python loop (the flat
 checker: the plain δ-grid check, as a reference measured in the same run).
 
 - Configurations: uniform in the anthropomorphic arm's joint limits, in the milling cell
-  (the densest scene; about a third collide, and each of those MuJoCo must confirm).
+  (the densest scene; about a third collide, and witnesses prove those contacts, MuJoCo
+  deciding only what neither bounds nor witnesses can).
 - Paths: the paper's 1.1 → 2.1 transfer, all 64 milling transfers in one call, and
   ``--paths`` random-clutter paths of Anthropomorphic-v1's scene (from a free
   configuration by up to a quarter of every joint range).
 
-The last table says how much of the grid the filter decided itself. Best of
-``--repeats`` runs; numbers depend on the machine and its load.
+The share table says who decided the grid samples: bounded samples are those the filter
+visited (the rest of the grid its bounds cleared without a visit), of which the witnessed
+ones its inner shapes proved in contact and the MuJoCo checks went to ``mj_collision``.
+
+The last table times the filter beside MuJoCo on the same model in the same run, per env
+id of ``--ids`` (its scene after ``reset(seed=0)``, which lays a clutter; the checker's
+margined model, which the filter reads): ``--configs`` uniform configurations through
+``CompiledFilter.collide`` (asserted equal to MuJoCo's ncon > 0 on every one), and
+``--env-paths`` verdict-only clutter paths through ``rows_paths_collide`` (per bounded
+sample), against ``mj_kinematics`` + ``mj_collision`` per configuration on a fresh
+``MjData``, called from a Python loop (``data.qpos[:dof] = q``, reading ``ncon``) and from
+a tight loop (qpos through a preallocated view, nothing read), and from a numba loop that
+calls the two C functions as the filter's own MuJoCo fallback does (no Python per
+configuration: the MuJoCo column); the loop that only sets qpos shows the Python part of
+the tight loop. Best of ``--repeats`` runs; numbers depend on the machine and its load.
 """
 
 from __future__ import annotations
@@ -27,10 +44,26 @@ import argparse
 import os
 import time
 
+import gymnasium as gym
+import mujoco
+import numba
 import numpy as np
 
+import envs  # noqa: F401  (registers the env ids)
 from envs.kinematics import make_arm
-from envs.models import RECOMMENDED_BRANCHES, CollisionChecker, build_model, milling_cell_poses
+from envs.models import (
+    RECOMMENDED_BRANCHES,
+    CollisionChecker,
+    build_model,
+    milling_cell_poses,
+    native,
+)
+from envs.models.filter import COUNTERS
+from envs.models.filter.kernels import _exact_contacts
+
+#: The env ids of the last table (``--ids``): their scenes after ``reset(seed=0)``.
+ENV_IDS = ("IKBranch/Anthropomorphic-v2", "IKBranch/KukaKR6-v0", "IKBranch/UR5e-v0",
+           "IKBranch/Cartesian-v2", "IKBranch/ToolTransfer-v1")
 
 
 def _best(fn, repeats: int) -> float:
@@ -51,12 +84,13 @@ def _every_sample_until_contact(checker: CollisionChecker, q0, q1) -> np.ndarray
     ])
 
 
-def _filter_share(checker: CollisionChecker, run) -> tuple[float, float]:
-    """(bounded, MuJoCo-checked) samples per path of ``run`` (compiled backend)."""
+def _filter_share(checker: CollisionChecker, run) -> tuple[float, float, float]:
+    """(bounded, witnessed, MuJoCo-checked) samples per path of ``run`` (compiled backend;
+    ``run`` returns its number of paths)."""
     before = checker._filter.counters.copy()
     count = run()
-    bounded, exact, _, _ = checker._filter.counters - before
-    return bounded / count, exact / count
+    spent = dict(zip(COUNTERS, checker._filter.counters - before, strict=True))
+    return spent["bounded"] / count, spent["witnessed"] / count, spent["mujoco"] / count
 
 
 def main() -> None:
@@ -64,6 +98,10 @@ def main() -> None:
     parser.add_argument("--configs", type=int, default=20000)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--paths", type=int, default=300)
+    parser.add_argument("--env-paths", type=int, default=500,
+                        help="clutter paths per env id of the last table")
+    parser.add_argument("--ids", nargs="*", default=list(ENV_IDS), metavar="ID",
+                        help="env ids of the last table (none: skip it)")
     args = parser.parse_args()
 
     arm = make_arm("anthropomorphic")
@@ -118,13 +156,17 @@ def main() -> None:
     for name, rate in rows:
         print(f"{name:<{width}}  {rate:>10,.0f}")
     print()
-    print("| path set | grid samples/path | bounded/path | MuJoCo checks/path |")
-    print("|---|---:|---:|---:|")
+    print("| path set | grid samples/path | bounded samples/path | witnessed/path "
+          "| MuJoCo checks/path |")
+    print("|---|---:|---:|---:|---:|")
     grid = n_samples
-    bounded, exact = _filter_share(checker, lambda: (checker.paths_collide(start, end), 1)[1])
-    print(f"| 1.1 -> 2.1 (verdict) | {grid} | {bounded:.1f} | {exact:.2f} |")
+    bounded, witnessed, exact = _filter_share(
+        checker, lambda: (checker.paths_collide(start, end), 1)[1])
+    print(f"| 1.1 -> 2.1 (verdict) | {grid} | {bounded:.1f} | {witnessed:.2f} | {exact:.2f} |")
     for row in share:
         print(row)
+    if args.ids:
+        _beside_mujoco(args.ids, args.configs, args.env_paths, args.repeats)
 
 
 def _clutter_paths(arm, count: int, repeats: int):
@@ -158,9 +200,107 @@ def _clutter_paths(arm, count: int, repeats: int):
     share = []
     for name, run in (("verdict", lambda: (compiled.paths_collide(q0, q1), len(q0))[1]),
                       ("first sample", lambda: (compiled.check_paths(q0, q1), len(q0))[1])):
-        bounded, exact = _filter_share(compiled, run)
-        share.append(f"| random clutter ({name}) | {grid:.0f} | {bounded:.1f} | {exact:.2f} |")
+        bounded, witnessed, exact = _filter_share(compiled, run)
+        share.append(f"| random clutter ({name}) | {grid:.0f} | {bounded:.1f} "
+                     f"| {witnessed:.2f} | {exact:.2f} |")
     return rows, share
+
+
+@numba.njit
+def _native_loop(rows, qpos0, exact, out):
+    """``out[i]``: MuJoCo's contact count at ``rows[i]`` (leading qpos entries, the rest at
+    ``qpos0``), ``mj_kinematics`` + ``mj_collision`` called from compiled code as the
+    filter calls them (``exact``: ``native.exact_addresses``)."""
+    qpos = qpos0.copy()
+    for i in range(rows.shape[0]):
+        qpos[: rows.shape[1]] = rows[i]
+        out[i] = _exact_contacts(qpos, exact)
+
+
+def _mujoco_loops(model: mujoco.MjModel, q: np.ndarray, repeats: int):
+    """MuJoCo's verdicts (ncon > 0) at configurations ``q`` (M, dof) on a fresh ``MjData``,
+    and the seconds per configuration of: the Python loop (``data.qpos[:dof] = q``,
+    ``mj_kinematics`` + ``mj_collision``, ``ncon`` read), the tight loop (qpos through a
+    preallocated view, nothing read), the tight loop's qpos writes alone, and the two
+    calls from compiled code (:func:`_native_loop`: no Python per configuration)."""
+    data = mujoco.MjData(model)
+    dof = q.shape[1]
+    ncon = np.empty(len(q), dtype=np.int64)
+
+    def plain():
+        for i in range(len(q)):
+            data.qpos[:dof] = q[i]
+            mujoco.mj_kinematics(model, data)
+            mujoco.mj_collision(model, data)
+            ncon[i] = data.ncon
+
+    qpos, kinematics, collision = data.qpos[:dof], mujoco.mj_kinematics, mujoco.mj_collision
+
+    def tight():
+        for row in q:
+            qpos[:] = row
+            kinematics(model, data)
+            collision(model, data)
+
+    def writes():
+        for row in q:
+            qpos[:] = row
+
+    exact, counts = native.exact_addresses(model, data), np.empty(len(q), dtype=np.int64)
+
+    def compiled():
+        _native_loop(q, model.qpos0, exact, counts)
+
+    times = [_best(run, repeats) / len(q) for run in (plain, tight, writes, compiled)]
+    assert np.array_equal(counts, ncon), "MuJoCo from compiled code != from Python"
+    return ncon > 0, times
+
+
+def _beside_mujoco(ids, configs: int, count: int, repeats: int) -> None:
+    """The filter and MuJoCo on each env's scene after ``reset(seed=0)``, same run."""
+    print("\nns per sample beside MuJoCo on the same model, same run "
+          f"({configs} configurations, ~{count} clutter paths per id; MuJoCo = "
+          "mj_kinematics + mj_collision on a fresh MjData)\n")
+    print("| id | slots | pairs | ns/configuration (filter) | in contact % | witnessed % "
+          "| MuJoCo calls % | ns/bounded path sample (filter) | bounded samples/path "
+          "| paths hit % | ns/configuration MuJoCo (kinematics+collision, numba loop) "
+          "| ns MuJoCo, Python loop | ns MuJoCo, tight Python loop | ns its qpos writes alone |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for env_id in ids:
+        env = gym.make(env_id)
+        env.reset(seed=0)
+        arm, checker = env.unwrapped.arm, env.unwrapped.checker
+        filt, model = checker._filter, checker.model
+        rng = np.random.default_rng(2)
+        lower, upper = arm.joint_limits[:, 0], arm.joint_limits[:, 1]
+        q = np.ascontiguousarray(rng.uniform(lower, upper, size=(configs, arm.dof)))
+
+        # (a) configurations, as the env checks them
+        before = filt.counters.copy()
+        verdicts = filt.collide(q) > 0
+        spent = dict(zip(COUNTERS, filt.counters - before, strict=True))
+        per_config = _best(lambda f=filt, q=q: f.collide(q), repeats) / configs
+        reference, (plain, tight, writes, native_call) = _mujoco_loops(model, q, repeats)
+        assert np.array_equal(verdicts, reference), f"{env_id}: filter != MuJoCo"
+
+        # (b) verdict-only paths from free configurations (as _clutter_paths draws them)
+        starts = rng.uniform(lower, upper, size=(4 * count, arm.dof))
+        q0 = np.ascontiguousarray(starts[~checker.rows_collide(starts)][:count])
+        q1 = np.ascontiguousarray(np.clip(
+            q0 + rng.uniform(-0.25, 0.25, size=q0.shape) * (upper - lower), lower, upper))
+        before = filt.counters.copy()
+        hits = checker.rows_paths_collide(q0, q1)
+        bounded = int((filt.counters - before)[COUNTERS.index("bounded")])
+        run = lambda c=checker, q0=q0, q1=q1: c.rows_paths_collide(q0, q1)  # noqa: E731
+        per_sample = _best(run, repeats) / bounded
+        env.close()
+
+        slots, pairs = len(filt.scene.slot_geom), len(filt.scene.pair_a)
+        print(f"| {env_id} | {slots} | {pairs} | {per_config * 1e9:,.0f} "
+              f"| {verdicts.mean():.1%} | {spent['witnessed'] / configs:.2%} "
+              f"| {spent['mujoco'] / configs:.2%} | {per_sample * 1e9:,.0f} "
+              f"| {bounded / len(q0):.1f} | {hits.mean():.0%} | {native_call * 1e9:,.0f} "
+              f"| {plain * 1e9:,.0f} | {tight * 1e9:,.0f} | {writes * 1e9:,.0f} |")
 
 
 if __name__ == "__main__":

@@ -7,25 +7,34 @@ handles every row it is given at once:
 - :meth:`EpisodeBatch.begin` — a row takes a new task: its ladder (candidates, validity,
   endpoint hits) and observation templates, the arm at the task's start;
 - :meth:`EpisodeBatch.survey` — for rows in a new state, the moves into their next
-  waypoint: every path from where the arm stands (one ``paths_collide`` call for all
-  rows), every price (one :func:`envs.moves._price` call), the least free travel onward
-  (one call per round, :func:`envs.moves.least_free_travel`) and the observation (one
-  assembly);
+  waypoint, their prices, the least free travel onward and the observations;
 - :meth:`EpisodeBatch.advance` — rows take their actions: what :meth:`survey` priced for
   the chosen branches is paid, and the arm moves.
 
-Where the path verdicts come from is the owner's: the single env's checker through its
-cache (``MovePricer.paths_collide``), a vector env's stacked scenes in one kernel call.
+Both are one compiled call each (``envs.stepping``), whatever the number of rows; the
+paths are decided by the compiled collision filter, each in its row's scene (the single
+env's own filter, a vector env's stacked scenes), through a memo of path verdicts.
 """
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
 
-from envs.moves import REWARD_TERMS, LinePaths, MovePricer, TaskMoves, _price, least_free_travel
+from envs import stepping
+from envs.models.filter import CompiledFilter, FilterStack
+from envs.moves import REWARD_TERMS, MovePricer, TaskMoves
 from envs.observations import ObservationBuilder
+
+#: Scene tokens of this process: each scene laid gets its own (``EpisodeBatch.set_scene``).
+_SCENE_TOKENS = itertools.count(1)
+
+
+def new_scene_token() -> int:
+    """A token no scene of this process has had (0 is a fixed scene's)."""
+    return next(_SCENE_TOKENS)
 
 
 @dataclass(frozen=True)
@@ -59,15 +68,17 @@ class Steps:
 
 class EpisodeBatch:
     """The state of ``size`` episodes of tasks of ``n_waypoints`` waypoints each, for one
-    pricer (arm, cost, penalties) and one observation layout; ``paths_collide`` gives the
-    path verdicts of a row's moves (``envs.moves.LinePaths``: lines are rows)."""
+    pricer (arm, cost, penalties) and one observation layout; ``checks`` is the compiled
+    collision filter (a ``CompiledFilter``, or a ``FilterStack`` with ``scenes`` naming
+    each row's scene in it) that decides the paths of the rows' moves."""
 
     def __init__(self, size: int, n_waypoints: int, pricer: MovePricer,
-                 observations: ObservationBuilder, paths_collide: LinePaths) -> None:
+                 observations: ObservationBuilder, checks: CompiledFilter | FilterStack,
+                 scenes: np.ndarray | None = None) -> None:
         arm = pricer.arm
         k, dof, n = arm.n_branches, arm.dof, n_waypoints
         self.size, self.n_waypoints, self.pricer = size, n_waypoints, pricer
-        self.observations, self.paths_collide = observations, paths_collide
+        self.observations, self.checks = observations, checks
         #: Per row: the configuration, the next waypoint (``n_waypoints`` once over), and
         #: whether a move of the episode collided or picked an invalid branch.
         self.q = np.zeros((size, dof))
@@ -80,6 +91,7 @@ class EpisodeBatch:
         self.endpoint = np.zeros((size, n, k), dtype=bool)
         self.start = np.zeros((size, dof))
         self.free_start = np.zeros(size, dtype=bool)
+        self.lengths = np.full(size, n, dtype=np.int64)
         self.templates = np.zeros((size, n + 1, observations.size), dtype=np.float32)
         #: Per row: the priced moves of its current state into its next waypoint, as
         #: ``_price`` writes them (value and flag blocks of (row, 1, K)), and its
@@ -87,21 +99,48 @@ class EpisodeBatch:
         self.values = np.zeros((len(_VALUE_NAMES), size, 1, k))
         self.flags = np.zeros((3, size, 1, k), dtype=bool)
         self.observation = np.zeros((size, observations.size), dtype=np.float32)
-        self._lengths = np.full(size, n, dtype=np.int64)
+        #: Per row: its scene in ``checks`` and the token of the scene standing there now
+        #: (the path memo's key: ``set_scene``).
+        self.scenes = np.arange(size, dtype=np.int64) if scenes is None else np.asarray(
+            scenes, dtype=np.int64)
+        self.tokens = np.zeros(size, dtype=np.int64)
+        self._memo = stepping.memo_arrays(dof)
+        self._bind()
+
+    def _bind(self) -> None:
+        """(Re)build the compiled stages' view of the arrays."""
+        pricer, builder = self.pricer, self.observations
+        cost, layout = pricer.cost, builder.layout
+        numbers = np.array([cost.travel_weight, cost.time_weight, pricer.collision_penalty,
+                            pricer.invalid_penalty, float(pricer.terminate_on_collision),
+                            pricer.max_transition_cost, pricer.travel_scale,
+                            pricer.checker.resolution])
+        onward = layout.get("slot0/free_travel_out", (-1, -1))
+        slices = np.array([*layout["q"], *layout["slot0/travel"],
+                           *layout["slot0/path_collision"], *onward], dtype=np.int64)
+        self._episodes = stepping.Episodes(
+            self.q, self.index, self.collided, self.invalid, self.candidates, self.valid,
+            self.endpoint, self.free_start, self.lengths, self.templates, self.values,
+            self.flags, self.observation, cost.weights, cost.speeds, numbers, slices,
+            builder._centre, builder._half_range, pricer.checker.lever, self.scenes,
+            self.tokens, *self._memo)
 
     #: The per-row arrays (a view of one row shares them).
     _ROW_ARRAYS = ("q", "index", "collided", "invalid", "candidates", "valid", "endpoint",
-                   "start", "free_start", "templates", "observation", "_lengths")
+                   "start", "free_start", "lengths", "templates", "observation", "tokens")
 
-    def view(self, row: int, paths_collide: LinePaths) -> EpisodeBatch:
+    def view(self, row: int, checks: CompiledFilter) -> EpisodeBatch:
         """A batch of one whose arrays are row ``row`` of this batch's: what either does to
-        the row, the other sees (a vector env's sub-env runs its episode in its row)."""
+        the row, the other sees (a vector env's sub-env runs its episode in its row);
+        ``checks``: the sub-env's own filter (its scene in it is 0)."""
         one = object.__new__(EpisodeBatch)
         one.size, one.n_waypoints, one.pricer = 1, self.n_waypoints, self.pricer
-        one.observations, one.paths_collide = self.observations, paths_collide
+        one.observations, one.checks = self.observations, checks
         for name in self._ROW_ARRAYS:
             setattr(one, name, getattr(self, name)[row : row + 1])
         one.values, one.flags = self.values[:, row : row + 1], self.flags[:, row : row + 1]
+        one.scenes, one._memo = np.zeros(1, dtype=np.int64), self._memo
+        one._bind()
         return one
 
     # ------------------------------------------------------------------------- stages
@@ -118,41 +157,30 @@ class EpisodeBatch:
         self.index[row] = 0
         self.collided[row] = self.invalid[row] = False
 
+    def set_scene(self, row: int, token: int) -> None:
+        """A new scene stands in row ``row``'s env (a clutter laid): path verdicts
+        remembered for the old one no longer apply (``token``: a number no other scene
+        of this process has had)."""
+        self.tokens[row] = token
+
     def survey(self, rows: np.ndarray) -> None:
         """Price the moves of ``rows`` (int array) from their current state and assemble
-        their observations (``self.observation[rows]``)."""
-        live = rows[self.index[rows] < self.n_waypoints]
-        collision = self._slot_paths(live)
-        if len(live):
-            self._price(live, collision)
-        onward = None
-        if self.observations.wants_onward:
-            onward = self._onward(live, self.valid[live, self.index[live]] & ~collision)
-        self.observation[rows] = self.observations.observe_rows(
-            self.templates[rows], self.index[rows], self.q[rows])
-        if len(live):
-            self.observations.fill_slot0(
-                self.observation, live, self.valid[live, self.index[live]],
-                self.values[1, live, 0], collision, onward)
+        their observations (``self.observation[rows]``): one compiled call."""
+        stepping.survey(self._episodes, self.checks._bound, rows)
 
     def advance(self, rows: np.ndarray, actions: np.ndarray) -> Steps:
         """Rows ``rows`` move to branch ``actions`` (ints in [0, K), checked by the caller)
         of their next waypoint, paying what :meth:`survey` priced."""
+        count = len(rows)
+        values = np.empty((len(_VALUE_NAMES), count))
+        flags = np.empty((3, count), dtype=bool)
+        success = np.empty(count, dtype=bool)
         waypoint = self.index[rows]
-        values = self.values[:, rows, 0, actions]
-        flags = self.flags[:, rows, 0, actions]
-        terminated, collision, invalid = flags
-        moved = rows[~invalid]
-        self.q[moved] = self.candidates[moved, waypoint[~invalid], actions[~invalid]]
-        self.index[rows] = np.where(terminated, self.n_waypoints, waypoint + 1)
-        self.collided[rows] |= collision
-        self.invalid[rows] |= invalid
-        success = (terminated & (waypoint == self.n_waypoints - 1) & ~self.collided[rows]
-                   & ~self.invalid[rows])
+        stepping.advance(self._episodes, rows, actions, values, flags, success)
         terms = {name: values[3 + i] for i, name in enumerate(REWARD_TERMS)}
         return Steps(waypoint=waypoint, branch=actions, reward=values[0], travel=values[1],
-                     time=values[2], terms=terms, collision=collision, invalid=invalid,
-                     terminated=terminated, success=success)
+                     time=values[2], terms=terms, collision=flags[1], invalid=flags[2],
+                     terminated=flags[0], success=success)
 
     def masks(self, rows: np.ndarray) -> np.ndarray:
         """(len(rows), K) bool: the valid branches of each row's next waypoint; every
@@ -160,49 +188,6 @@ class EpisodeBatch:
         over = self.index[rows] >= self.n_waypoints
         waypoint = np.minimum(self.index[rows], self.n_waypoints - 1)
         return self.valid[rows, waypoint] | over[:, None]
-
-    # ----------------------------------------------------------------------- helpers
-    def _slot_paths(self, live: np.ndarray) -> np.ndarray:
-        """(len(live), K) bool: the move from each row's configuration to each valid branch
-        of its next waypoint collides (its path; at a free start the branch's own
-        configuration); invalid branches are False. One ``paths_collide`` call."""
-        waypoint = self.index[live]
-        valid = self.valid[live, waypoint]
-        collision = np.zeros(valid.shape, dtype=bool)
-        still = self.free_start[live] & (waypoint == 0)
-        collision[still] = self.endpoint[live[still], 0] & valid[still]
-        lines, branches = np.nonzero(valid & ~still[:, None])
-        if len(lines):
-            ends = self.candidates[live[lines], waypoint[lines], branches]
-            collision[lines, branches] = self.paths_collide(live[lines], self.q[live[lines]],
-                                                            ends)
-        return collision
-
-    def _price(self, live: np.ndarray, collision: np.ndarray) -> None:
-        """Every term of every move of ``live`` rows (``_price``, one call)."""
-        waypoint = self.index[live]
-        values = np.empty((len(_VALUE_NAMES), len(live), 1, self.valid.shape[2]))
-        flags = np.empty((3, len(live), 1, self.valid.shape[2]), dtype=bool)
-        _price(self.q[live][:, None], self.candidates[live, waypoint], self.valid[live, waypoint],
-               waypoint, collision[:, None], self.free_start[live], self._lengths[live],
-               *self.pricer.price_arguments, values, flags)
-        self.values[:, live], self.flags[:, live] = values, flags
-
-    def _onward(self, live: np.ndarray, branches: np.ndarray) -> np.ndarray:
-        """(len(live), K): per branch of each row's next waypoint that ``branches`` allows,
-        the least travel onward along a free path (+inf where none, and at the last
-        waypoint)."""
-        onward = np.full(branches.shape, np.inf)
-        inner = np.flatnonzero(self.index[live] + 1 < self.n_waypoints)
-        if not len(inner):
-            return onward
-        rows, here = live[inner], self.index[live[inner]]
-        targets = self.valid[rows, here + 1] & ~self.endpoint[rows, here + 1]
-        onward[inner] = least_free_travel(
-            self.candidates[rows, here], self.candidates[rows, here + 1], branches[inner],
-            targets, self.pricer.cost.weights,
-            lambda lines, starts, ends: self.paths_collide(rows[lines], starts, ends))
-        return onward
 
 
 #: Rows of ``EpisodeBatch.values``: as ``envs.moves._price`` writes them.

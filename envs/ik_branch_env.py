@@ -10,17 +10,19 @@ import numpy as np
 from gymnasium import spaces
 
 from envs.costs import TransitionCost
-from envs.episodes import EpisodeBatch
+from envs.episodes import EpisodeBatch, new_scene_token
 from envs.kinematics import ARM_NAMES, make_arm
 from envs.models import SCENES, CollisionChecker, build_arm_model
 from envs.models.scene_file import base_pose, load_scene_file
 from envs.models.scenes import CLUTTER_SLOTS, ClutterSlots, draw_clutter
 from envs.moves import MovePricer, TaskMoves
 from envs.observations import ObservationBuilder
+from envs.random_chain import random_chain
 from envs.seeds import TRAIN_SCENES
 from envs.task_frame import FramedArm, TaskFrame
 from envs.tasks import TASKS, Task
 from envs.tasks.file_task import FileTask
+from envs.tasks.random_reachable import random_reachable
 from envs.tasks.waypoint_file import read_waypoints
 from envs.tools import Tool
 
@@ -285,7 +287,7 @@ class IKBranchEnv(gym.Env):
         self._renderer = None
         #: The episode's state, stepped as a vector env steps its rows (a batch of one).
         self._episode = EpisodeBatch(1, self.n_waypoints, self.pricer, self._observations,
-                                     self._line_paths)
+                                     checker._filter, scenes=np.zeros(1, dtype=np.int64))
         self._episode.q[0] = self.arm.home
         self._row = np.zeros(1, dtype=np.int64)
 
@@ -452,9 +454,13 @@ class IKBranchEnv(gym.Env):
         pricer = self.pricer
         if self._clutter is not None:
             self._lay_scene(int(self.np_random.integers(*self.scene_seeds)))
-        task = self._generator(
-            self._task_arm, self.np_random, self.n_waypoints, pricer.is_free, pricer.is_path_free
-        )
+        if self._generator is random_reachable:  # its compiled fast path (the same task)
+            checker = self.checker
+            task = random_chain(self._task_arm, self.np_random, self.n_waypoints,
+                                checker._filter, checker.lever, checker.resolution)
+        else:
+            task = self._generator(self._task_arm, self.np_random, self.n_waypoints,
+                                   pricer.is_free, pricer.is_path_free)
         if not self.task_frame.identity:  # the task speaks in the cell, of the TCP
             task = Task(start=task.start, poses=self.task_frame.to_fk(task.poses),
                         free_start=task.free_start)
@@ -481,6 +487,7 @@ class IKBranchEnv(gym.Env):
             clutter.lay(obstacles, self.model, checker.model)
             checker.refresh_static(clutter.geoms)
         self.pricer.clear_caches()
+        self._episode.set_scene(0, new_scene_token())
         self.scene_seed = seed
 
     def _start(self, task: Task, ladder: TaskMoves) -> None:
@@ -522,10 +529,6 @@ class IKBranchEnv(gym.Env):
         if self.task is None:
             raise RuntimeError("call reset() before edge_rewards()")
         return self.ladder.edges(waypoint)
-
-    def _line_paths(self, lines: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
-        """The episode's path verdicts (``envs.episodes``): through the pricer's cache."""
-        return self.pricer.paths_collide(starts, ends)
 
     def render(self):
         if self.render_mode != "rgb_array":

@@ -24,7 +24,8 @@ import numba
 _ROOT = Path(__file__).resolve().parent
 
 #: The files and folders (relative to ``envs/``) whose kernels call each other.
-KERNEL_SOURCES = ("models/filter", "models/native.py", "moves.py", "observations.py")
+KERNEL_SOURCES = ("models/filter", "models/native.py", "models/scenes.py", "moves.py",
+                  "observations.py", "stepping.py", "random_chain.py")
 
 
 def _sources() -> list[Path]:

@@ -128,8 +128,7 @@ class MovePricer:
         missing = list({keys[i]: i for i, row in enumerate(rows) if row is None}.values())
         if missing:
             candidates, valid = self.arm.ik(poses[missing])
-            endpoint = np.zeros_like(valid)
-            endpoint[valid] = self.configurations_collide(candidates[valid])
+            endpoint = self._endpoint_collision(candidates, valid)
             new = {
                 keys[i]: (candidates[row], valid[row], endpoint[row])
                 for row, i in enumerate(missing)
@@ -142,6 +141,30 @@ class MovePricer:
             np.array([row[1] for row in rows]),
             np.array([row[2] for row in rows]),
         )
+
+    def _endpoint_collision(self, candidates: np.ndarray, valid: np.ndarray) -> np.ndarray:
+        """(M, K) bool: each valid candidate's configuration collides (``candidates`` (M, K,
+        dof) of M poses). The turn copies of one closed-form branch place every link
+        alike (up to rounding far below the filter's tolerances), so one check of the
+        first copy serves them all where a proof of the filter decided it; where MuJoCo
+        decided, every copy is asked of MuJoCo itself."""
+        endpoint = np.zeros(valid.shape, dtype=bool)
+        rows, branches = np.nonzero(valid)
+        if not len(rows):
+            return endpoint
+        group = rows * self.arm.n_closed_form + self.arm.branch_closed_form[branches]
+        _, first, inverse = np.unique(group, return_index=True, return_inverse=True)
+        representatives = np.ascontiguousarray(candidates[rows[first], branches[first]])
+        _finite_rows(representatives, "configurations")
+        hits, proved = self.checker.rows_collide_proved(representatives)
+        verdict = hits[inverse]
+        again = ~proved[inverse]
+        again[first] = False  # the representatives themselves: MuJoCo's own verdict
+        if again.any():
+            verdict[again] = self.checker.rows_collide(
+                np.ascontiguousarray(candidates[rows[again], branches[again]]))
+        endpoint[rows, branches] = verdict
+        return endpoint
 
     def task(self, task: Task) -> TaskMoves:
         """The ladder of ``task``: its candidates solved, ready to price moves."""
@@ -311,21 +334,40 @@ def _onward_travel(here, there, rows, targets, weights, out):
 
 
 @njit
-def _take_or_try_next(lines, rows, columns, hits, travel, order, tried, out, pending):
+def _next_targets(lines, rows, travel, last, columns):
+    """Per asking (``lines[i]``, ``rows[i]``): its next target, the cheapest one after
+    ``last`` in the order (travel, target index) — the order a stable sort of the row
+    gives, found by one scan instead of sorting every row (a K = 256 arm's rows are mostly
+    decided by their first target). ``columns[i]`` −1 where none is left."""
+    k = travel.shape[2]
+    for i in range(len(rows)):
+        line, row = lines[i], rows[i]
+        after = last[line, row]
+        floor = travel[line, row, after] if after >= 0 else -np.inf
+        best, pick = np.inf, -1
+        for b in range(k):
+            value = travel[line, row, b]
+            if not value < np.inf:
+                continue
+            if value < floor or (value == floor and b <= after):
+                continue  # tried already
+            if value < best:
+                best, pick = value, b
+        columns[i] = pick
+
+
+@njit
+def _take_or_try_next(lines, rows, columns, hits, travel, last, out, pending):
     """One round of :func:`least_free_travel`: row ``rows[i]`` of line ``lines[i]`` whose
-    path to ``columns[i]`` is free takes that travel; the others move on to their next
-    cheapest target, and stop where none is left."""
-    k = order.shape[2]
+    path to ``columns[i]`` is free takes that travel; the others remember it as tried and
+    move on to their next cheapest target in the next round."""
     for i in range(len(rows)):
         line, row = lines[i], rows[i]
         if not hits[i]:
             out[line, row] = travel[line, row, columns[i]]
             pending[line, row] = False
-            continue
-        tried[line, row] += 1
-        done = tried[line, row]
-        if done == k or not travel[line, row, order[line, row, done]] < np.inf:
-            pending[line, row] = False
+        else:
+            last[line, row] = columns[i]
 
 
 #: ``paths_collide(lines (M,), starts (M, dof), ends (M, dof)) -> (M,) bool``: the path
@@ -340,22 +382,29 @@ def least_free_travel(here: np.ndarray, there: np.ndarray, branches: np.ndarray,
     ``here[l, a]`` (L, K, dof) to a ``there[l, b]`` with ``targets[l, b]`` along a
     collision-free path, +inf where there is none and where ``branches`` is False.
 
-    Paths are checked cheapest first, one ``paths_collide`` call per round for every
-    branch of every line still undecided, until each finds a free one: usually one or two
-    rounds. Targets are the free branches of the next waypoint (valid, their
-    configuration collision-free: a path ends in its target)."""
+    Paths are checked cheapest first (ties: the lower target index), one
+    ``paths_collide`` call per round for every branch of every line still undecided,
+    until each finds a free one: usually one or two rounds. Targets are the free branches
+    of the next waypoint (valid, their configuration collision-free: a path ends in its
+    target)."""
     lines_count, k = branches.shape
     out = np.full((lines_count, k), np.inf)
     travel = np.empty((lines_count, k, k))
     pending = np.array(branches, dtype=np.bool_)
     _onward_travel(here, there, pending, targets, weights, travel)
-    order = np.argsort(travel, axis=2, kind="stable")
-    tried = np.zeros((lines_count, k), dtype=np.int64)
+    last = np.full((lines_count, k), -1, dtype=np.int64)
     while pending.any():
         lines, rows = np.nonzero(pending)
-        columns = order[lines, rows, tried[lines, rows]]
+        columns = np.empty(len(lines), dtype=np.int64)
+        _next_targets(lines, rows, travel, last, columns)
+        done = columns < 0
+        if done.any():  # no target left: +inf
+            pending[lines[done], rows[done]] = False
+            lines, rows, columns = lines[~done], rows[~done], columns[~done]
+            if not len(lines):
+                break
         hits = paths_collide(lines, here[lines, rows], there[lines, columns])
-        _take_or_try_next(lines, rows, columns, hits, travel, order, tried, out, pending)
+        _take_or_try_next(lines, rows, columns, hits, travel, last, out, pending)
     return out
 
 

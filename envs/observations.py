@@ -38,6 +38,10 @@ from envs.moves import TEMPLATE_CACHE_BYTES, TEMPLATE_SIGHTINGS, TaskMoves
 
 #: The observation layouts (module docstring).
 OBSERVATIONS = ("compact", "ladder")
+#: Arms with at least this many branches (and turn windows) sum up their travel from the
+#: ladder's factors (closed-form branch × turn windows), the others over every pair of
+#: branches: both give the same values; docs/models.md has the measurements.
+FACTORED_BRANCHES = 128
 
 
 @njit
@@ -72,6 +76,119 @@ def _travel_summaries(candidates, valid, free, weights, scale, leaving, arriving
             arriving[i + 1, a] = min(out_to[a] / scale, 1.0)
 
 
+@njit
+def _turn_tables(candidates, valid, endpoint, closed, turned, turns, n_closed, windows):
+    """The ladder of an arm with turn branches as its factors, per waypoint i and
+    closed-form branch c: the values of the joints without turns ``fixed[i, c]`` (dof),
+    of each turned joint in each window ``turned_value[i, c, t, w]``, which windows exist
+    ``window_ok[i, c, t, w]``, and whether c exists with a free configuration
+    ``free[i, c]``. Returns False where the ladder is not such a product (a value that
+    differs between turn copies, validity that is not the product of the windows', an
+    endpoint verdict that differs between copies): the caller then takes the general
+    kernel."""
+    n, k, dof = candidates.shape
+    jt = len(turned)
+    fixed = np.zeros((n, n_closed, dof))
+    turned_value = np.zeros((n, n_closed, jt, windows))
+    window_ok = np.zeros((n, n_closed, jt, windows), dtype=np.bool_)
+    exists = np.zeros((n, n_closed), dtype=np.bool_)
+    free = np.zeros((n, n_closed), dtype=np.bool_)
+    is_turned = np.zeros(dof, dtype=np.bool_)
+    for t in range(jt):
+        is_turned[turned[t]] = True
+    factored = True
+    for i in range(n):
+        for b in range(k):
+            if valid[i, b] and not _factor_branch(candidates[i, b], endpoint[i, b], closed[b],
+                                                  turns[b], turned, is_turned, fixed[i],
+                                                  turned_value[i], window_ok[i], exists[i],
+                                                  free[i]):
+                factored = False
+        for b in range(k):  # validity is the product of the windows'
+            product = exists[i, closed[b]]
+            for t in range(jt):
+                product = product and window_ok[i, closed[b], t, turns[b, t]]
+            factored = factored and product == valid[i, b]
+    return factored, fixed, turned_value, window_ok, free
+
+
+@njit
+def _factor_branch(q, hit, c, windows, turned, is_turned, fixed, turned_value, window_ok,
+                   exists, free):
+    """Enter one valid branch (closed-form ``c``, ``windows`` of its turned joints) into
+    the factors of its waypoint; False where it contradicts what its turn copies entered."""
+    first = not exists[c]
+    if first:
+        exists[c], free[c] = True, not hit
+    elif free[c] == hit:
+        return False
+    for j in range(len(q)):
+        if not is_turned[j]:
+            if first:
+                fixed[c, j] = q[j]
+            elif fixed[c, j] != q[j]:
+                return False
+    for t in range(len(turned)):
+        w = windows[t]
+        value = q[turned[t]]
+        if window_ok[c, t, w] and turned_value[c, t, w] != value:
+            return False
+        turned_value[c, t, w], window_ok[c, t, w] = value, True
+    return True
+
+
+@njit
+def _least_to(q, fixed, turned_value, window_ok, free, turned, weights, into):
+    """The least travel Σ_j w_j|q'_j − q_j| from configuration ``q`` (summed as the
+    general kernel sums it: ``abs(later − earlier) * w`` in joint order; ``into``: ``q``
+    is the later end) to any free branch of one waypoint given as :func:`_turn_tables`'
+    factors. Each free closed-form branch's best turn copy takes each turned joint's best
+    window: addition is monotonic, so that sum is the least of its copies' sums exactly."""
+    best = np.inf
+    dof, jt = len(q), len(turned)
+    for c in range(len(free)):
+        if not free[c]:
+            continue
+        total = 0.0
+        t = 0
+        for j in range(dof):
+            if t < jt and turned[t] == j:
+                least = np.inf
+                for w in range(turned_value.shape[2]):
+                    if window_ok[c, t, w]:
+                        other = turned_value[c, t, w]
+                        step = abs(q[j] - other) if into else abs(other - q[j])
+                        least = min(least, step * weights[j])
+                t += 1
+                total += least
+            else:
+                other = fixed[c, j]
+                total += (abs(q[j] - other) if into else abs(other - q[j])) * weights[j]
+        best = min(best, total)
+    return best
+
+
+@njit
+def _turned_travel_summaries(candidates, valid, tables, turned, weights, scale, leaving,
+                             arriving):
+    """:func:`_travel_summaries` (the same values, bit for bit) from the factors of a
+    ladder with turn branches (:func:`_turn_tables`): O(N·K·Kc) instead of O(N·K²)."""
+    _, fixed, turned_value, window_ok, free = tables
+    n, k, _ = candidates.shape
+    leaving[:] = 1.0
+    arriving[:] = 1.0
+    for i in range(n - 1):
+        for a in range(k):
+            if valid[i, a]:
+                least = _least_to(candidates[i, a], fixed[i + 1], turned_value[i + 1],
+                                  window_ok[i + 1], free[i + 1], turned, weights, False)
+                leaving[i, a] = min(least / scale, 1.0)
+            if valid[i + 1, a]:
+                least = _least_to(candidates[i + 1, a], fixed[i], turned_value[i],
+                                  window_ok[i], free[i], turned, weights, True)
+                arriving[i + 1, a] = min(least / scale, 1.0)
+
+
 class ObservationBuilder:
     """The layout and assembly of one env's observations (arm, lookahead, travel scale,
     ``kind``: one of ``OBSERVATIONS``)."""
@@ -83,6 +200,15 @@ class ObservationBuilder:
         self.arm, self.lookahead, self.travel_scale, self.kind = arm, lookahead, travel_scale, kind
         lower, upper = arm.joint_limits[:, 0], arm.joint_limits[:, 1]
         self._centre, self._half_range = (upper + lower) / 2, (upper - lower) / 2
+        #: An arm with turn branches: its branch factors (closed-form index per branch,
+        #: turned joints, window per branch and turned joint, counts), else None.
+        self._turns = None
+        if arm.turn_windows and arm.n_branches >= FACTORED_BRANCHES:
+            turned = np.array([joint for joint, _ in arm.turn_windows], dtype=np.int64)
+            self._turns = (np.ascontiguousarray(arm.branch_closed_form, dtype=np.int64), turned,
+                           np.ascontiguousarray(arm.branch_turns, dtype=np.int64),
+                           arm.n_closed_form,
+                           max(len(windows) for _, windows in arm.turn_windows))
         #: name -> (start, stop) of each slice of the observation vector.
         self.layout = self._layout()
         self.size = max(stop for _, stop in self.layout.values())
@@ -192,9 +318,19 @@ class ObservationBuilder:
         # leaving[i] (K): from waypoint i onwards, to the free branches after; arriving[i]
         # (K): into waypoint i, from the free branches before.
         leaving, arriving = np.empty((n, k)), np.empty((n, k))
-        _travel_summaries(ladder.candidates, ladder.valid,
-                          ladder.valid & ~ladder.endpoint_collision, ladder.pricer.cost.weights,
-                          float(self.travel_scale), leaving, arriving)
+        weights, scale = ladder.pricer.cost.weights, float(self.travel_scale)
+        tables = None
+        if self._turns is not None:  # many turn branches: the ladder's factors, where it is one
+            closed, turned, turns, n_closed, windows = self._turns
+            tables = _turn_tables(ladder.candidates, ladder.valid, ladder.endpoint_collision,
+                                  closed, turned, turns, n_closed, windows)
+        if tables is not None and tables[0]:
+            _turned_travel_summaries(ladder.candidates, ladder.valid, tables, self._turns[1],
+                                     weights, scale, leaving, arriving)
+        else:
+            _travel_summaries(ladder.candidates, ladder.valid,
+                              ladder.valid & ~ladder.endpoint_collision, weights, scale,
+                              leaving, arriving)
         for h in range(min(self.lookahead, n - 1) + 1):
             rows = n - h  # indices 0 … n − h − 1 see waypoint index + h inside the task
             start = self.layout[f"slot{h}/present"][0]

@@ -11,7 +11,7 @@ from gymnasium.vector.utils import batch_space
 
 from envs.episodes import EpisodeBatch, Steps
 from envs.ik_branch_env import IKBranchEnv
-from envs.models.filter import FilterStack, path_steps
+from envs.models.filter import FilterStack
 
 
 class IKBranchVectorEnv(VectorEnv):
@@ -30,10 +30,10 @@ class IKBranchVectorEnv(VectorEnv):
     A step advances all rows at once: the chosen moves are paid from what was priced
     before, then the new states are surveyed together — every path of every sub-env in one
     call of the compiled collision filter (its scenes stacked, :class:`FilterStack`),
-    every move priced in one call, the onward free travel in one call per round, the
-    observations in one assembly. Only a reset's task drawing runs per sub-env. Tasks
-    from a finite pose set (the milling cell's tool changes, a waypoint file) check paths
-    through each sub-env's path cache instead, where they are met again.
+    every move priced, the onward free travel and the observations in the same compiled
+    call (``envs.stepping``), with a memo of the paths already checked (a finite pose
+    set's moves recur from episode to episode). Only a reset's task drawing runs per
+    sub-env.
 
     ## Spaces
     ``single_observation_space`` and ``single_action_space`` are the env's (``Box`` and
@@ -86,14 +86,12 @@ class IKBranchVectorEnv(VectorEnv):
         self.action_space = batch_space(first.action_space, self.num_envs)
         self.observation_layout = first.observation_layout
         self.n_branches = first.arm.n_branches
+        # One kernel call checks the paths of every sub-env, each in its own scene.
+        self._stack = FilterStack([env.checker._filter for env in self.envs])
         self._episodes = EpisodeBatch(self.num_envs, first.n_waypoints, first.pricer,
-                                      first._observations, self._line_paths)
+                                      first._observations, self._stack)
         for row, env in enumerate(self.envs):  # each sub-env runs its episode in its row
-            env._episode = self._episodes.view(row, env._line_paths)
-        filters = [env.checker._filter for env in self.envs]
-        self._stack = None if any(f is None for f in filters) else FilterStack(filters)
-        self._cached = bool(getattr(first._generator, "finite_poses", False))
-        self._lever, self._resolution = first.checker.lever, first.checker.resolution
+            env._episode = self._episodes.view(row, env.checker._filter)
         self._rows = np.arange(self.num_envs)
         self._ended = np.zeros(self.num_envs, dtype=bool)
         self._started = False
@@ -265,20 +263,6 @@ class IKBranchVectorEnv(VectorEnv):
             for key, value in self.envs[row]._new_episode(seed).items():
                 _put(infos, key, np.array([row]), np.array([value]), n=n)
         return infos
-
-    def _line_paths(self, lines: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
-        """Path verdicts of moves of sub-envs ``lines`` (``envs.episodes``): one call of the
-        stacked filter, or through each sub-env's path cache for tasks met again."""
-        if self._cached or self._stack is None:
-            out = np.empty(len(lines), dtype=bool)
-            for line in np.unique(lines).tolist():
-                mine = lines == line
-                out[mine] = self.envs[line]._line_paths(lines[mine], starts[mine], ends[mine])
-            return out
-        starts, ends = np.ascontiguousarray(starts), np.ascontiguousarray(ends)
-        steps = np.empty(len(ends), dtype=np.int64)
-        path_steps(starts, ends, self._lever, self._resolution, steps)
-        return self._stack.paths(lines.astype(np.int64), starts, ends, steps, False) >= 0
 
 
 def _autoreset_mode(value: str | AutoresetMode) -> AutoresetMode:

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from envs.jit import njit
 from envs.kinematics import Arm
 from envs.kinematics.paper_example import RACK_SLOT_OFFSETS_Y, TOOL_ABC_MM, example_poses
 
@@ -173,29 +174,64 @@ def draw_clutter(arm: Arm, seed: int, base: list[tuple[np.ndarray, float]],
                  n_obstacles: int = 8) -> list[Obstacle]:
     """The obstacles of clutter ``seed``: candidates next to the wrist centres of random
     configurations (numpy ``default_rng(seed)``), those overlapping the fixed base
-    (``base`` discs) dropped. Whether one touches the arm at home is the caller's check."""
+    (``base`` discs) dropped. Whether one touches the arm at home is the caller's check.
+
+    The draws, in order: the configurations (``uniform(lower, upper, size=(n, dof))``),
+    then per candidate its half-sizes (``uniform(0.05, 0.2, size=2)``), its top
+    (``uniform(-0.4, 0.0)``), its offset (``normal(scale=0.25, size=2)``) and, unless it
+    is dropped, its kind (``random()``); the candidates' draws run in one compiled call
+    (:func:`_candidates`: numba draws from a NumPy ``Generator`` exactly as NumPy does).
+    """
     rng = np.random.default_rng(seed)
     lower, upper = arm.joint_limits[:, 0], arm.joint_limits[:, 1]
-    centres = arm.fk(rng.uniform(lower, upper, size=(n_obstacles, arm.dof)))[:, :3, 3]
-    discs = np.array([disc for disc, _ in base], dtype=np.float64).reshape(-1, 2)
-    radii = np.array([radius for _, radius in base], dtype=np.float64)
+    poses = arm.fk(rng.uniform(lower, upper, size=(n_obstacles, arm.dof)))
+    flat = []  # (x, y, radius) of every disc
+    for disc, radius in base:
+        flat += disc.tolist() if type(disc) is np.ndarray else list(disc)
+        flat.append(radius)
+    discs = np.array(flat, dtype=np.float64).reshape(-1, 3)
+    rows = np.empty((n_obstacles, 7))
+    count = _candidates(rng, np.ascontiguousarray(poses[:, :3, 3]), discs, rows)
     obstacles = []
-    # Python floats: the same IEEE arithmetic as numpy scalars, without their overhead.
-    for k, (cx, cy, cz) in enumerate(centres.tolist()):
-        h0, h1 = rng.uniform(0.05, 0.2, size=2).tolist()
-        # Reach up to somewhere around the sampled wrist centre (never below 0.1 m).
-        top = max(0.1, cz + rng.uniform(-0.4, 0.0))
-        o0, o1 = rng.normal(scale=0.25, size=2).tolist()
-        x, y = cx + o0, cy + o1
-        footprint = float(np.hypot(h0, h1))
-        if (np.hypot(x - discs[:, 0], y - discs[:, 1]) < footprint + radii).any():
-            continue
-        pos = (x, y, top / 2)
-        if rng.random() < 0.5:
-            obstacles.append(Obstacle(k, "box", (h0, h1, top / 2), pos))
+    for k, box, h0, h1, z, x, y in rows[:count].tolist():
+        if box:
+            obstacles.append(Obstacle(int(k), "box", (h0, h1, z), (x, y, z)))
         else:
-            obstacles.append(Obstacle(k, "cylinder", (h0, h0, top / 2), pos))
+            obstacles.append(Obstacle(int(k), "cylinder", (h0, h0, z), (x, y, z)))
     return obstacles
+
+
+@njit
+def _candidates(rng, centres, discs, rows):
+    """The candidates of :func:`draw_clutter` next to the wrist ``centres`` (n, 3), their
+    draws from ``rng``, those overlapping a disc (x, y, radius) of ``discs`` dropped: rows
+    (slot, box, h0, h1, half-height, x, y) of the kept ones, in slot order; returns their
+    number."""
+    count = 0
+    for k in range(centres.shape[0]):
+        cx, cy, cz = centres[k, 0], centres[k, 1], centres[k, 2]
+        h0 = rng.uniform(0.05, 0.2)
+        h1 = rng.uniform(0.05, 0.2)
+        # Reach up to somewhere around the sampled wrist centre (never below 0.1 m).
+        top = cz + rng.uniform(-0.4, 0.0)
+        if not top > 0.1:  # Python's max(0.1, top)
+            top = 0.1
+        x = cx + rng.normal(0.0, 0.25)
+        y = cy + rng.normal(0.0, 0.25)
+        footprint = np.hypot(h0, h1)  # the C library's hypot, as numpy's
+        dropped = False
+        for d in range(discs.shape[0]):
+            if np.hypot(x - discs[d, 0], y - discs[d, 1]) < footprint + discs[d, 2]:
+                dropped = True
+                break
+        if dropped:
+            continue
+        box = rng.random() < 0.5
+        rows[count, 0], rows[count, 1] = k, 1.0 if box else 0.0
+        rows[count, 2], rows[count, 3], rows[count, 4] = h0, h1, top / 2
+        rows[count, 5], rows[count, 6] = x, y
+        count += 1
+    return count
 
 
 def random_clutter(
@@ -254,6 +290,7 @@ CLUTTER_SLOTS = 8
 #: Where an unused obstacle slot waits: far below the floor, out of every arm's reach
 #: (static geoms never collide with each other or the floor).
 PARKED = (0.0, 0.0, -100.0)
+_PARKED_X, _PARKED_Y, _PARKED_Z = PARKED
 
 
 class ClutterSlots:
@@ -275,52 +312,96 @@ class ClutterSlots:
                              for k in range(n_obstacles)])
         self.geoms = self.ids.ravel()
         self._types = model.geom_type[self.geoms]
+        self._primitive = bool(np.isin(self._types,
+                                       (_GEOM_BOX, _GEOM_CYLINDER, _GEOM_CAPSULE)).all())
         self.base = _static_arm_discs(model)
 
     def lay(self, obstacles: list[Obstacle], *models: mujoco.MjModel) -> None:
-        half = np.tile((0.05, 0.05, 0.05), (len(self.geoms), 1))
-        pos = np.tile(PARKED, (len(self.geoms), 1))
+        if not self._primitive:
+            raise ValueError("clutter slot geoms must be boxes, cylinders or capsules")
+        # Rows (slot, parts, half x, y, z, pos x, y, z); parts: 0 the box geoms (box and
+        # its visual), 1 the cylinder geoms, 2 a disc (collided as the box around it, as
+        # add_part builds it: the box and the visual cylinder).
+        flat = []
         for obstacle in obstacles:
-            row = 4 * obstacle.slot
-            if obstacle.kind == "box":
-                parts = (0, 1)
-            elif obstacle.half[2] >= obstacle.half[0]:
-                parts = (2, 3)
-            else:  # a disc: collided as the box around it (as add_part builds it)
-                parts = (0, 3)
-            for part in parts:
-                half[row + part], pos[row + part] = obstacle.half, obstacle.pos
-        size, rbound, aabb = _primitive_sizes(self._types, half)
+            half = obstacle.half
+            parts = 0 if obstacle.kind == "box" else 1 if half[2] >= half[0] else 2
+            flat += (obstacle.slot, parts, *half, *obstacle.pos)
+        rows = np.array(flat, dtype=np.float64).reshape(-1, 8)
+        n_geoms = len(self.geoms)
+        size, pos, rbound = np.empty((n_geoms, 3)), np.empty((n_geoms, 3)), np.empty(n_geoms)
+        aabb = np.empty((n_geoms, 6))
+        status = _slot_values(self._types, rows, size, pos, rbound, aabb)
+        if status == 1:
+            raise IndexError(f"an obstacle slot outside 0..{self.n_obstacles - 1}")
+        if status == 2:
+            raise ValueError("a clutter disc lower than it is wide has no capsule slot")
         for model in models:
-            model.geom_size[self.geoms] = size
-            model.geom_pos[self.geoms] = pos
-            model.geom_quat[self.geoms] = (1.0, 0.0, 0.0, 0.0)
-            model.geom_rbound[self.geoms] = rbound
-            model.geom_aabb[self.geoms] = np.concatenate([np.zeros_like(aabb), aabb], axis=1)
+            _write_slots(self.geoms, size, pos, rbound, aabb, model.geom_size, model.geom_pos,
+                         model.geom_quat, model.geom_rbound, model.geom_aabb)
 
 
-def _primitive_sizes(types: np.ndarray, half: np.ndarray):
-    """MuJoCo ``geom_size``, ``geom_rbound`` and ``geom_aabb`` half-extents of primitive
-    geoms spanning ``half`` (x, y, z) (a cylinder's: radius, radius, half-height): a box by
-    its half-sizes, a cylinder by radius and half-height, a capsule (the collision twin of
-    a cylinder) by radius and the half-length of its straight part."""
-    radius, height = half[:, 0], half[:, 2]
-    size = np.zeros_like(half)
-    # Plain ints: comparing an array with MuJoCo's enum objects is ~20 times slower.
-    box = types == _GEOM_BOX
-    cylinder = types == _GEOM_CYLINDER
-    capsule = types == _GEOM_CAPSULE
-    if not (box | cylinder | capsule).all():
-        raise ValueError("clutter slot geoms must be boxes, cylinders or capsules")
-    if np.any(capsule & (height < radius)):
-        raise ValueError("a clutter disc lower than it is wide has no capsule slot")
-    size[box] = half[box]
-    size[cylinder, 0], size[cylinder, 1] = radius[cylinder], height[cylinder]
-    size[capsule, 0], size[capsule, 1] = radius[capsule], height[capsule] - radius[capsule]
-    rbound = np.where(box, np.linalg.norm(half, axis=1),
-                      np.where(cylinder, np.hypot(radius, height), height))
-    aabb = np.where(box[:, None], half, np.stack([radius, radius, height], axis=1))
-    return size, rbound, aabb
+@njit
+def _slot_values(types, rows, size, pos, rbound, aabb):
+    """MuJoCo ``geom_size``, ``geom_pos``, ``geom_rbound`` and ``geom_aabb`` of the slot
+    geoms (``types``, four a slot in ``ClutterSlots.PARTS`` order) standing the obstacles
+    ``rows`` (see ``ClutterSlots.lay``), the others parked: a box by its half-sizes, a
+    cylinder by radius and half-height, a capsule (the collision twin of a cylinder) by
+    radius and the half-length of its straight part. Returns 0, else 1 for a slot out of
+    range, 2 for a capsule lower than it is wide (then no model is written)."""
+    n_geoms = types.shape[0]
+    half = np.empty((n_geoms, 3))
+    for g in range(n_geoms):
+        half[g, 0] = half[g, 1] = half[g, 2] = 0.05
+        pos[g, 0], pos[g, 1], pos[g, 2] = _PARKED_X, _PARKED_Y, _PARKED_Z
+    for r in range(rows.shape[0]):
+        slot = rows[r, 0]
+        if not (0 <= slot and 4 * slot + 4 <= n_geoms):
+            return 1
+        row = 4 * int(slot)
+        parts = rows[r, 1]
+        first, second = (0, 1) if parts == 0 else (2, 3) if parts == 1 else (0, 3)
+        for g in (row + first, row + second):
+            for c in range(3):
+                half[g, c] = rows[r, 2 + c]
+                pos[g, c] = rows[r, 5 + c]
+    for g in range(n_geoms):
+        if types[g] == _GEOM_CAPSULE and half[g, 2] < half[g, 0]:
+            return 2
+    for g in range(n_geoms):
+        radius, height = half[g, 0], half[g, 2]
+        aabb[g, 0] = aabb[g, 1] = aabb[g, 2] = 0.0
+        aabb[g, 3], aabb[g, 4], aabb[g, 5] = radius, radius, height
+        size[g, 2] = 0.0
+        if types[g] == _GEOM_BOX:
+            size[g, 0], size[g, 1], size[g, 2] = radius, half[g, 1], height
+            aabb[g, 4] = half[g, 1]
+            # numpy's norm(half, axis=1) of these rows: (x² + y²) + z², then the root.
+            rbound[g] = np.sqrt((radius * radius + half[g, 1] * half[g, 1])
+                                + height * height)
+        elif types[g] == _GEOM_CYLINDER:
+            size[g, 0], size[g, 1] = radius, height
+            rbound[g] = np.hypot(radius, height)  # libm's, as numpy's
+        else:  # capsule
+            size[g, 0], size[g, 1] = radius, height - radius
+            rbound[g] = height
+    return 0
+
+
+@njit
+def _write_slots(geoms, size, pos, rbound, aabb, geom_size, geom_pos, geom_quat, geom_rbound,
+                 geom_aabb):
+    """Write the slot geoms' values (:func:`_slot_values`) into a model's arrays."""
+    for i in range(geoms.shape[0]):
+        g = geoms[i]
+        for c in range(3):
+            geom_size[g, c] = size[i, c]
+            geom_pos[g, c] = pos[i, c]
+        geom_quat[g, 0] = 1.0
+        geom_quat[g, 1] = geom_quat[g, 2] = geom_quat[g, 3] = 0.0
+        geom_rbound[g] = rbound[i]
+        for c in range(6):
+            geom_aabb[g, c] = aabb[i, c]
 
 
 SCENES = {"empty": empty, "milling_cell": milling_cell, "random_clutter": random_clutter}

@@ -101,8 +101,13 @@ def task_generator(
     return decorate
 
 
+#: Rounds of draws ``sample_free_configurations`` makes before it gives up.
+SAMPLE_ROUNDS = 50
+
+
 def sample_free_configurations(
-    arm: Arm, rng: np.random.Generator, count: int, is_free: FreePredicate, max_rounds: int = 50
+    arm: Arm, rng: np.random.Generator, count: int, is_free: FreePredicate,
+    max_rounds: int = SAMPLE_ROUNDS,
 ) -> np.ndarray:
     """``count`` configurations drawn uniformly inside the limits and collision-free."""
     lower, upper = arm.joint_limits[:, 0], arm.joint_limits[:, 1]

@@ -128,3 +128,49 @@ def test_waypoints_outside_the_task_are_refused():
         ladder.edges(ladder.n_waypoints)
     with pytest.raises(ValueError, match="waypoint"):
         ladder.terms(ladder.candidates[0], np.array([0, -1]))
+
+
+def test_next_targets_follow_a_stable_sort_of_each_row():
+    # The onward search takes targets cheapest first, ties by index: a scan per round
+    # gives the order a stable argsort of the row gives.
+    from envs.moves import _next_targets
+
+    rng = np.random.default_rng(4)
+    travel = np.round(rng.uniform(0, 3, size=(2, 5, 9)), 1)  # many ties
+    travel[travel > 2.6] = np.inf
+    for line in range(2):
+        for row in range(5):
+            order = [int(b) for b in np.argsort(travel[line, row], kind="stable")
+                     if np.isfinite(travel[line, row, b])]
+            last = np.full((2, 5), -1, dtype=np.int64)
+            seen = []
+            while True:
+                column = np.empty(1, dtype=np.int64)
+                _next_targets(np.array([line]), np.array([row]), travel, last, column)
+                if column[0] < 0:
+                    break
+                seen.append(int(column[0]))
+                last[line, row] = column[0]
+            assert seen == order
+
+
+@pytest.mark.parametrize("env_id", ["IKBranch/UR5e-v0", "IKBranch/KukaKR6-v0",
+                                    "IKBranch/IRB4600ToolTransfer-v0"])
+def test_turn_copies_share_their_endpoint_checks_with_the_same_verdicts(env_id):
+    # One check per closed-form branch (its turn copies place every link alike): the
+    # verdict of every copy is the loop backend's, configuration by configuration.
+    from envs.models import CollisionChecker
+
+    env = make(env_id, n_waypoints=4)
+    base = env.unwrapped
+    checked = 0
+    for seed in range(4):
+        env.reset(seed=seed)  # (a clutter laid: the reference copies the model after it)
+        loop = CollisionChecker(base.checker.model, dof=base.arm.dof, backend="loop")
+        ladder = base.ladder
+        valid = ladder.valid
+        expected = np.zeros(valid.shape, dtype=bool)
+        expected[valid] = loop.collides(ladder.candidates[valid])
+        np.testing.assert_array_equal(ladder.endpoint_collision, expected)
+        checked += int(valid.sum())
+    assert checked > 20

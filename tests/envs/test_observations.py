@@ -187,3 +187,51 @@ def test_travel_summaries_are_the_priced_travel(env_id):
         expected_in[i + 1] = np.minimum(into.min(axis=0) / scale, 1.0)
     np.testing.assert_array_equal(leaving, expected_out)
     np.testing.assert_array_equal(arriving, expected_in)
+
+
+@pytest.mark.parametrize("env_id", ["IKBranch/UR5e-v0", "IKBranch/KukaKR6-v0",
+                                    "IKBranch/IRB2600Screwing-v0"])
+def test_factored_travel_summaries_are_the_general_ones(env_id):
+    # An arm's turn branches factor its ladder (closed-form branch × turn windows): the
+    # least travel taken over the factors is the least over every pair, bit for bit.
+    from envs.observations import _travel_summaries, _turn_tables, _turned_travel_summaries
+
+    env = gym.make(env_id, n_waypoints=4)
+    base = env.unwrapped
+    arm = base.arm
+    turned = np.array([joint for joint, _ in arm.turn_windows], dtype=np.int64)
+    factors = (np.ascontiguousarray(arm.branch_closed_form, dtype=np.int64), turned,
+               np.ascontiguousarray(arm.branch_turns, dtype=np.int64), arm.n_closed_form,
+               max(len(windows) for _, windows in arm.turn_windows))
+    for seed in range(6):
+        env.reset(seed=seed)
+        ladder = base.ladder
+        n, k = ladder.valid.shape
+        scale, weights = float(base.pricer.travel_scale), ladder.pricer.cost.weights
+        expected, factored = [np.empty((n, k)), np.empty((n, k))], [np.empty((n, k)),
+                                                                    np.empty((n, k))]
+        _travel_summaries(ladder.candidates, ladder.valid,
+                          ladder.valid & ~ladder.endpoint_collision, weights, scale, *expected)
+        tables = _turn_tables(ladder.candidates, ladder.valid, ladder.endpoint_collision,
+                              *factors)
+        assert tables[0]  # the ladder is the product of its factors
+        _turned_travel_summaries(ladder.candidates, ladder.valid, tables, turned, weights, scale,
+                                 *factored)
+        np.testing.assert_array_equal(factored[0], expected[0])
+        np.testing.assert_array_equal(factored[1], expected[1])
+    # A ladder that is not a product (a turn copy moved) is recognised: the general kernel.
+    closed = arm.branch_closed_form
+    waypoint, copy = next((i, b) for i in range(n) for b in range(k) if ladder.valid[i, b]
+                          and (ladder.valid[i] & (closed == closed[b])).sum() > 1)
+    joint = next(j for j in range(arm.dof) if j not in turned)
+    candidates = ladder.candidates.copy()
+    candidates[waypoint, copy, joint] += 1e-9
+    assert not _turn_tables(candidates, ladder.valid, ladder.endpoint_collision, *factors)[0]
+
+
+def test_an_arm_with_hundreds_of_branches_sums_its_factors():
+    from envs.observations import FACTORED_BRANCHES
+
+    assert gym.make("IKBranch/UR5e-v0").unwrapped._observations._turns is not None
+    assert gym.make("IKBranch/KukaKR6-v0").unwrapped.arm.n_branches < FACTORED_BRANCHES
+    assert gym.make("IKBranch/KukaKR6-v0").unwrapped._observations._turns is None

@@ -47,7 +47,7 @@ import mujoco
 import numpy as np
 
 from .. import native
-from .kernels import COUNTERS, check_configurations, check_paths, path_steps
+from .kernels import COUNTERS, Bound, bound_configurations, bound_paths, path_steps
 from .layout import (
     DISTANCE_TOLERANCE,
     PER_SCENE,
@@ -79,7 +79,7 @@ class CompiledFilter:
         """Read ``scene`` (one scene) and ``exact`` (its (1, 6) MuJoCo addresses) from now on."""
         self.scene, self._exact = scene, exact
         # The kernels' leading arguments, built once (the arrays are refreshed in place).
-        self._scene_arguments = (scene.tree, scene.geometry, scene.motion, exact, _ONE_SCENE)
+        self._bound = Bound(scene.tree, scene.geometry, scene.motion, exact, self.counters)
 
     def refresh_static(self, geoms: np.ndarray | None = None) -> None:
         """Follow changed static geoms of the model (see :func:`refresh_static`)."""
@@ -89,25 +89,29 @@ class CompiledFilter:
         """(M,) contact counts at configurations ``rows`` (M, dof): 0 where proven free,
         else MuJoCo's count. ``need`` > 0: only until ``need`` free rows are found (the
         rest −1, unchecked)."""
-        out = np.empty(len(rows), dtype=np.int64)
-        check_configurations(*self._scene_arguments, rows, need, False, out, self.counters)
+        out, how = np.empty(len(rows), dtype=np.int64), np.empty(len(rows), dtype=np.int8)
+        bound_configurations(self._bound, _ONE_SCENE, rows, need, False, out, how)
         return out
 
     def collide(self, rows: np.ndarray, need: int = 0) -> np.ndarray:
         """(M,) 0 where configuration ``rows[i]`` is free, > 0 where it is in contact (a
         count where MuJoCo decided, 1 where inner shapes proved it); ``need`` as in
         :meth:`contacts`."""
-        out = np.empty(len(rows), dtype=np.int64)
-        check_configurations(*self._scene_arguments, rows, need, True, out, self.counters)
-        return out
+        return self.collide_how(rows, need)[0]
+
+    def collide_how(self, rows: np.ndarray, need: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`collide`, and per row who decided it: ``kernels.BY_BOUNDS``,
+        ``BY_WITNESS`` (a proof, with its tolerance) or ``BY_MUJOCO``."""
+        out, how = np.empty(len(rows), dtype=np.int64), np.empty(len(rows), dtype=np.int8)
+        bound_configurations(self._bound, _ONE_SCENE, rows, need, True, out, how)
+        return out, how
 
     def paths(self, start_rows: np.ndarray, end_rows: np.ndarray, steps: np.ndarray,
               first: bool) -> np.ndarray:
         """(M,) grid index of a colliding sample per path (−1: free), the lowest with
         ``first``; ``start_rows`` (M or 1, dof), ``end_rows`` (M, dof), ``steps`` (M,)."""
         out = np.empty(len(end_rows), dtype=np.int64)
-        check_paths(*self._scene_arguments, start_rows, end_rows, steps, first, out,
-                    self.counters)
+        bound_paths(self._bound, _ONE_SCENE, start_rows, end_rows, steps, first, out)
         return out
 
 
@@ -141,23 +145,21 @@ class FilterStack:
                 name: array[index : index + 1] for name, array in stacked.items()}),
                 self._exact[index : index + 1])
         self.counters = np.zeros(len(COUNTERS), dtype=np.int64)
-        self._scene_arguments = (self.scene.tree, self.scene.geometry, self.scene.motion,
-                                 self._exact)
+        self._bound = Bound(self.scene.tree, self.scene.geometry, self.scene.motion,
+                            self._exact, self.counters)
 
     def collide(self, scenes: np.ndarray, rows: np.ndarray) -> np.ndarray:
         """(M,) 0 where configuration ``rows[i]`` is free in scene ``scenes[i]``, > 0 where
         it is in contact (:meth:`CompiledFilter.collide`)."""
-        out = np.empty(len(rows), dtype=np.int64)
-        check_configurations(*self._scene_arguments, scenes, rows, 0, True, out,
-                             self.counters)
+        out, how = np.empty(len(rows), dtype=np.int64), np.empty(len(rows), dtype=np.int8)
+        bound_configurations(self._bound, scenes, rows, 0, True, out, how)
         return out
 
     def paths(self, scenes: np.ndarray, start_rows: np.ndarray, end_rows: np.ndarray,
               steps: np.ndarray, first: bool) -> np.ndarray:
         """:meth:`CompiledFilter.paths` of paths each in its scene ``scenes[m]``."""
         out = np.empty(len(end_rows), dtype=np.int64)
-        check_paths(*self._scene_arguments, scenes, start_rows, end_rows, steps, first, out,
-                    self.counters)
+        bound_paths(self._bound, scenes, start_rows, end_rows, steps, first, out)
         return out
 
 

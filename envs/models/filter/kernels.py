@@ -13,6 +13,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba.core import types
+from numba.experimental import structref
 
 from envs.jit import njit
 
@@ -23,6 +25,8 @@ from .tree import _axis_growth, _forward, _local_speed, _path_rates, _path_sampl
 
 #: What :func:`_sample_step` returns besides a free step (≥ 0).
 UNDECIDED, CONTACT = -1.0, -2.0
+#: Who decided a configuration (``check_configurations``' ``how``).
+BY_BOUNDS, BY_WITNESS, BY_MUJOCO = 0, 1, 2
 #: The filter's counters, in order: samples bounded, MuJoCo checks, exact pair bounds
 #: computed, MuJoCo checks that found no contact (samples free that the bounds could not
 #: prove free), samples whose inner shapes proved a contact.
@@ -80,26 +84,14 @@ def _sample_step(tree, geometry, qpos, xpos, xmat, wpos, wrot, rates, coarse, ca
         # A pair whose bound reaches ``enough`` cannot limit the step (nor, at a
         # configuration, be in contact): its bound need not be refined further.
         enough = pair_margin[k] + best * rates[k]
-        sphere = -math.inf
-        if slot_static[b] and slot_type[b] != PLANE:
-            sphere = _bound_pair(SPHERE, ca, rb, (slot_radius[a], 0.0, 0.0), slot_type[b], cb,
-                                 rb, sb, math.inf) - pair_margin[k]
-            if sphere > 0.0 and (rates[k] == 0.0 or sphere >= best * rates[k]):
-                continue
         ka, kb, ra, sa = slot_type[a], slot_type[b], _rotation(wrot, a), _size(slot_size, a)
-        if ka <= CYLINDER and kb <= CYLINDER and not (ka == BOX and kb == BOX):
-            # The boxes around two solids, by their separating axes (faces first, stopping
-            # at ``enough``): a few dozen operations where a capsule's exact distance to a
-            # box takes several times that.
-            (a0, a1, a2), (b0, b1, b2) = _box_around(ka, sa), _box_around(kb, sb)
-            boxed = _box_box(ca, ra, a0, a1, a2, cb, rb, b0, b1, b2, enough) - pair_margin[k]
-            if boxed > 0.0 and (rates[k] == 0.0 or boxed >= best * rates[k]):
-                continue
-            sphere = max(sphere, boxed)
+        coarser = _coarser_gap(ka, ca, ra, sa, slot_radius[a], kb, cb, rb, sb, slot_static[b],
+                               enough) - pair_margin[k]
+        if coarser > 0.0 and (rates[k] == 0.0 or coarser >= best * rates[k]):
+            continue
         counters[2] += 1
-        # All are lower bounds of the same distance (the sphere and the box hold a's
-        # container, the box b's).
-        gap = max(sphere, _bound_pair(ka, ca, ra, sa, kb, cb, rb, sb, enough) - pair_margin[k])
+        # Both are lower bounds of the same distance.
+        gap = max(coarser, _bound_pair(ka, ca, ra, sa, kb, cb, rb, sb, enough) - pair_margin[k])
         if not gap > 0.0:
             if not witness:
                 return UNDECIDED
@@ -218,6 +210,24 @@ def _local_step(step, gap, v0, w):
 
 
 @njit(inline="always")
+def _coarser_gap(ka, ca, ra, sa, radius_a, kb, cb, rb, sb, static_b, enough):
+    """Cheap lower bounds on a pair's distance before the containers' own: a's bounding
+    sphere against a static b's container, and the boxes around two solids by their
+    separating axes (faces first, stopping at ``enough``: a few dozen operations where a
+    capsule's exact distance to a box takes several times that); −inf where neither
+    applies."""
+    best = -math.inf
+    if static_b and kb != PLANE:
+        best = _bound_pair(SPHERE, ca, rb, (radius_a, 0.0, 0.0), kb, cb, rb, sb, math.inf)
+        if best >= enough:
+            return best
+    if ka <= CYLINDER and kb <= CYLINDER and not (ka == BOX and kb == BOX):
+        (a0, a1, a2), (b0, b1, b2) = _box_around(ka, sa), _box_around(kb, sb)
+        best = max(best, _box_box(ca, ra, a0, a1, a2, cb, rb, b0, b1, b2, enough))
+    return best
+
+
+@njit(inline="always")
 def _box_around(kind, size):
     """Half-sizes of the box (in the container's frame) around a sphere, capsule, box or
     cylinder container of ``size``."""
@@ -317,12 +327,13 @@ def path_steps(start_rows, end_rows, lever, resolution, out):
 
 @njit
 def check_configurations(tree, geometry, motion, exact, scenes, rows, need, verdict, out,
-                         counters):
+                         how, counters):
     """``out[i]`` for configuration ``rows[i]`` (its leading qpos entries; the rest stay at
     ``qpos0``) in scene ``scenes[i]`` of the stack (one entry: every row's scene): 0 where
     the bounds prove it free, else MuJoCo's contact count, or with ``verdict`` 1 where
-    inner shapes prove a contact. ``need`` > 0: rows are checked in order until ``need``
-    free ones are found; the rows after are not checked (``out`` −1). ``counters``:
+    inner shapes prove a contact; ``how[i]``: ``BY_BOUNDS``, ``BY_WITNESS`` or
+    ``BY_MUJOCO``. ``need`` > 0: rows are checked in order until ``need`` free ones are
+    found; the rows after are not checked (``out`` and ``how`` −1). ``counters``:
     :data:`COUNTERS`, added to."""
     xpos, xmat, wpos, wrot, rates, coarse = _work(tree, geometry)
     kinematic = tree[:12]
@@ -333,7 +344,7 @@ def check_configurations(tree, geometry, motion, exact, scenes, rows, need, verd
     entered = -1
     for i in range(rows.shape[0]):
         if need > 0 and free >= need:
-            out[i] = -1
+            out[i] = how[i] = -1
             continue
         e = scenes[0] if len(scenes) == 1 else scenes[i]
         scene = _scene(geometry, e)
@@ -345,13 +356,13 @@ def check_configurations(tree, geometry, motion, exact, scenes, rows, need, verd
         step = _sample_step(kinematic, scene, qpos, xpos, xmat, wpos, wrot, rates, coarse,
                             0.0, counters, motion, None, verdict, every_pair)
         if step >= 0.0:
-            out[i] = 0
+            out[i], how[i] = 0, BY_BOUNDS
         elif step == CONTACT:
             counters[4] += 1
-            out[i] = 1
+            out[i], how[i] = 1, BY_WITNESS
         else:
             counters[1] += 1
-            out[i] = _exact_contacts(qpos, exact[e])
+            out[i], how[i] = _exact_contacts(qpos, exact[e]), BY_MUJOCO
             if out[i] == 0:
                 counters[3] += 1
         if out[i] == 0:
@@ -456,3 +467,37 @@ def _push_interval(queue_lo, queue_hi, tail, lo, hi):
         queue_lo[tail], queue_hi[tail] = lo, hi
         tail = (tail + 1) % len(queue_lo)
     return tail
+
+
+# ------------------------------------------------------------------------ bound calls
+@structref.register
+class _BoundType(types.StructRef):
+    def preprocess_fields(self, fields):
+        return tuple((name, types.unliteral(kind)) for name, kind in fields)
+
+
+class Bound(structref.StructRefProxy):
+    """A scene stack's kernel arguments as one object: ``tree``, ``geometry``, ``motion``
+    (tuples of arrays), ``exact`` (the MuJoCo addresses per scene) and ``counters``. A
+    kernel call unboxes it at once, where the ~45 arrays as separate arguments cost
+    several µs a call (``bound_paths``, ``bound_configurations``)."""
+
+    def __new__(cls, tree, geometry, motion, exact, counters):
+        return structref.StructRefProxy.__new__(cls, tree, geometry, motion, exact, counters)
+
+
+structref.define_proxy(Bound, _BoundType, ["tree", "geometry", "motion", "exact", "counters"])
+
+
+@njit
+def bound_paths(bound, scenes, start_rows, end_rows, steps, first, out):
+    """:func:`check_paths` with the arguments of ``bound``."""
+    check_paths(bound.tree, bound.geometry, bound.motion, bound.exact, scenes, start_rows,
+                end_rows, steps, first, out, bound.counters)
+
+
+@njit
+def bound_configurations(bound, scenes, rows, need, verdict, out, how):
+    """:func:`check_configurations` with the arguments of ``bound``."""
+    check_configurations(bound.tree, bound.geometry, bound.motion, bound.exact, scenes, rows,
+                         need, verdict, out, how, bound.counters)

@@ -1,0 +1,373 @@
+"""The compiled stages of a batch of episodes (``envs.episodes``): survey and advance.
+
+One call per stage for every row given, with no Python between the parts of a stage:
+
+- :func:`survey` — for rows in a new state, the moves into their next waypoint: every
+  path from where the arm stands (looked up in the path memo, the rest checked in one
+  call of the collision filter's kernel, each path in its row's scene), every price
+  (``envs.moves._price``), the least travel onward along a free path (cheapest first,
+  one kernel call per round, as ``envs.moves.least_free_travel`` defines it) and the
+  observation (the template of the task with the configuration and slot 0 filled in, as
+  ``envs.observations.ObservationBuilder`` defines it);
+- :func:`advance` — rows take their actions: what :func:`survey` priced is paid, the arm
+  moves.
+
+The path memo is an open-addressing hash table of verdicts, keyed by the exact bits of a
+path's two ends and the scene they were checked in (a token that changes whenever a
+scene is laid anew): a move met again — the onward path a step checked, taken by the
+next step; a finite pose set's moves, episode after episode — is not checked again. It
+holds ``MEMO_SLOTS`` entries and starts afresh when half full.
+
+Everything lives in one :class:`Episodes` object (a numba StructRef: one argument to
+unbox, where its ~30 arrays would cost several µs a call).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba.core import types
+from numba.experimental import structref
+
+from envs.jit import njit
+from envs.models.filter.kernels import check_paths, path_steps
+from envs.moves import _next_targets, _onward_travel, _price, _take_or_try_next
+
+#: Slots of the path memo (a power of two); it starts afresh when half are taken.
+MEMO_SLOTS = 2**16
+#: Indices into ``Episodes.numbers``.
+TRAVEL_WEIGHT, TIME_WEIGHT, COLLISION_PENALTY, INVALID_PENALTY, TERMINATE, MAX_COST = range(6)
+TRAVEL_SCALE, RESOLUTION = 6, 7
+#: Indices into ``Episodes.layout``: start and stop of the observation's slices (q, slot
+#: 0's travel, path collisions and onward free travel; −1 where the layout has none).
+Q0, Q1, TRAVEL0, TRAVEL1, PATH0, PATH1, ONWARD0, ONWARD1 = range(8)
+
+FIELDS = ("q", "index", "collided", "invalid", "candidates", "valid", "endpoint",
+          "free_start", "lengths", "templates", "values", "flags", "observation", "weights",
+          "speeds", "numbers", "layout", "centre", "half_range", "lever", "scenes", "tokens",
+          "memo_keys", "memo_tokens", "memo_verdicts", "memo_count")
+
+
+@structref.register
+class _EpisodesType(types.StructRef):
+    def preprocess_fields(self, fields):
+        return tuple((name, types.unliteral(kind)) for name, kind in fields)
+
+
+class Episodes(structref.StructRefProxy):
+    """The arrays of a batch of episodes (``FIELDS``; ``envs.episodes.EpisodeBatch``
+    makes and owns it)."""
+
+    def __new__(cls, *arrays):
+        return structref.StructRefProxy.__new__(cls, *arrays)
+
+
+structref.define_proxy(Episodes, _EpisodesType, list(FIELDS))
+
+
+def memo_arrays(dof: int) -> tuple[np.ndarray, ...]:
+    """An empty path memo: keys (slots, 2·dof) of bits, scene tokens, verdicts (−1 empty,
+    0 free, 1 collides) and the count of entries."""
+    return (np.zeros((MEMO_SLOTS, 2 * dof), dtype=np.int64),
+            np.zeros(MEMO_SLOTS, dtype=np.int64), np.full(MEMO_SLOTS, -1, dtype=np.int8),
+            np.zeros(1, dtype=np.int64))
+
+
+# ------------------------------------------------------------------------- path memo
+@njit(inline="always")
+def _memo_slot(ep, token, start, end):
+    """The memo slot of the path ``start`` → ``end`` in scene ``token``: where it is, or
+    the empty slot where it would go."""
+    keys, tokens, verdicts = ep.memo_keys, ep.memo_tokens, ep.memo_verdicts
+    a, b = start.view(np.int64), end.view(np.int64)
+    dof = len(a)
+    h = np.uint64(14695981039346656037) ^ np.uint64(token)
+    for j in range(dof):
+        h = (h ^ np.uint64(a[j])) * np.uint64(1099511628211)
+        h = (h ^ np.uint64(b[j])) * np.uint64(1099511628211)
+    mask = len(tokens) - 1
+    slot = int(h ^ (h >> np.uint64(29))) & mask
+    while verdicts[slot] >= 0:
+        if tokens[slot] == token:
+            same = True
+            for j in range(dof):
+                if keys[slot, j] != a[j] or keys[slot, dof + j] != b[j]:
+                    same = False
+                    break
+            if same:
+                return slot
+        slot = (slot + 1) & mask
+    return slot
+
+
+@njit(inline="always")
+def _memo_put(ep, token, start, end, hit):
+    """Remember the verdict of ``start`` → ``end`` in scene ``token``."""
+    if 2 * ep.memo_count[0] >= len(ep.memo_tokens):  # half full: start afresh
+        ep.memo_verdicts[:] = -1
+        ep.memo_count[0] = 0
+    slot = _memo_slot(ep, token, start, end)
+    if ep.memo_verdicts[slot] < 0:
+        ep.memo_count[0] += 1
+    a, b = start.view(np.int64), end.view(np.int64)
+    dof = len(a)
+    for j in range(dof):
+        ep.memo_keys[slot, j], ep.memo_keys[slot, dof + j] = a[j], b[j]
+    ep.memo_tokens[slot] = token
+    ep.memo_verdicts[slot] = 1 if hit else 0
+
+
+@njit
+def _paths_collide(ep, bound, rows, starts, ends):
+    """(M,) bool: path m (``starts[m]`` → ``ends[m]``, in the scene of row ``rows[m]``)
+    collides; from the memo where it is there, the others in one kernel call, then
+    remembered."""
+    count = len(rows)
+    out = np.zeros(count, dtype=np.bool_)
+    missing = np.empty(count, dtype=np.int64)
+    misses = 0
+    for m in range(count):
+        slot = _memo_slot(ep, ep.tokens[rows[m]], starts[m], ends[m])
+        verdict = ep.memo_verdicts[slot]
+        if verdict >= 0:
+            out[m] = verdict == 1
+        else:
+            missing[misses] = m
+            misses += 1
+    if misses:
+        picked = missing[:misses]
+        first, last = starts[picked], ends[picked]
+        steps = np.empty(misses, dtype=np.int64)
+        path_steps(first, last, ep.lever, ep.numbers[RESOLUTION], steps)
+        scenes = np.empty(misses, dtype=np.int64)
+        for i in range(misses):
+            scenes[i] = ep.scenes[rows[picked[i]]]
+        index = np.empty(misses, dtype=np.int64)
+        check_paths(bound.tree, bound.geometry, bound.motion, bound.exact, scenes, first,
+                    last, steps, False, index, bound.counters)
+        for i in range(misses):
+            m = picked[i]
+            out[m] = index[i] >= 0
+            _memo_put(ep, ep.tokens[rows[m]], starts[m], ends[m], out[m])
+    return out
+
+
+# ---------------------------------------------------------------------------- survey
+@njit
+def survey(ep, bound, rows):
+    """Price the moves of ``rows`` from their current state and assemble their
+    observations (module docstring)."""
+    live_count = 0
+    live = np.empty(len(rows), dtype=np.int64)
+    for r in rows:
+        if ep.index[r] < ep.lengths[r]:
+            live[live_count] = r
+            live_count += 1
+    live = live[:live_count]
+    collision = _slot_paths(ep, bound, live)
+    if live_count:
+        _price_rows(ep, live, collision)
+    onward = np.full(collision.shape, np.inf)
+    if ep.layout[ONWARD0] >= 0:
+        _onward(ep, bound, live, collision, onward)
+    _observe(ep, rows, live, collision, onward)
+
+
+@njit
+def _slot_paths(ep, bound, live):
+    """(len(live), K): the move from each row's configuration to each valid branch of its
+    next waypoint collides (its path; at a free start the branch's own configuration)."""
+    k, dof = ep.valid.shape[2], ep.q.shape[1]
+    collision = np.zeros((len(live), k), dtype=np.bool_)
+    lines = np.empty(len(live) * k, dtype=np.int64)
+    branches = np.empty(len(live) * k, dtype=np.int64)
+    count = 0
+    for line in range(len(live)):
+        r = live[line]
+        w = ep.index[r]
+        still = ep.free_start[r] and w == 0
+        for b in range(k):
+            if not ep.valid[r, w, b]:
+                continue
+            if still:
+                collision[line, b] = ep.endpoint[r, 0, b]
+                continue
+            lines[count], branches[count] = line, b
+            count += 1
+    if count:
+        rows = np.empty(count, dtype=np.int64)
+        starts, ends = np.empty((count, dof)), np.empty((count, dof))
+        for i in range(count):
+            r = live[lines[i]]
+            rows[i] = r
+            starts[i] = ep.q[r]
+            ends[i] = ep.candidates[r, ep.index[r], branches[i]]
+        hits = _paths_collide(ep, bound, rows, starts, ends)
+        for i in range(count):
+            collision[lines[i], branches[i]] = hits[i]
+    return collision
+
+
+@njit
+def _price_rows(ep, live, collision):
+    """Every term of every move of ``live`` rows: one ``_price`` call."""
+    count, k, dof = len(live), ep.valid.shape[2], ep.q.shape[1]
+    origins = np.empty((count, 1, dof))
+    candidates = np.empty((count, k, dof))
+    valid = np.empty((count, k), dtype=np.bool_)
+    waypoints = np.empty(count, dtype=np.int64)
+    free_start = np.empty(count, dtype=np.bool_)
+    lengths = np.empty(count, dtype=np.int64)
+    verdicts = np.empty((count, 1, k), dtype=np.bool_)
+    for line in range(count):
+        r = live[line]
+        w = ep.index[r]
+        origins[line, 0] = ep.q[r]
+        candidates[line] = ep.candidates[r, w]
+        valid[line] = ep.valid[r, w]
+        waypoints[line], free_start[line], lengths[line] = w, ep.free_start[r], ep.lengths[r]
+        verdicts[line, 0] = collision[line]
+    values = np.empty((ep.values.shape[0], count, 1, k))
+    flags = np.empty((3, count, 1, k), dtype=np.bool_)
+    numbers = ep.numbers
+    _price(origins, candidates, valid, waypoints, verdicts, free_start, lengths, ep.weights,
+           ep.speeds, numbers[TRAVEL_WEIGHT], numbers[TIME_WEIGHT], numbers[COLLISION_PENALTY],
+           numbers[INVALID_PENALTY], numbers[TERMINATE] != 0.0, numbers[MAX_COST], values,
+           flags)
+    for line in range(count):
+        r = live[line]
+        ep.values[:, r] = values[:, line]
+        ep.flags[:, r] = flags[:, line]
+
+
+@njit
+def _onward(ep, bound, live, collision, onward):
+    """``onward[line]`` (K): per branch of a live row's next waypoint reachable without a
+    hit, the least travel onward along a free path (+inf where none, and at the last
+    waypoint): ``envs.moves.least_free_travel``, every row's rounds together."""
+    inner, rows, here, there, pending, targets = _onward_lines(ep, live, collision)
+    count, k = pending.shape
+    if not count:
+        return
+    travel = np.empty((count, k, k))
+    _onward_travel(here, there, pending, targets, ep.weights, travel)
+    last = np.full((count, k), -1, dtype=np.int64)
+    out = np.full((count, k), np.inf)
+    while True:
+        lines, branches = _pending_rows(pending)
+        if not len(lines):
+            break
+        columns = np.empty(len(lines), dtype=np.int64)
+        _next_targets(lines, branches, travel, last, columns)
+        asked = 0
+        for i in range(len(lines)):  # rows with no target left: +inf, done
+            if columns[i] < 0:
+                pending[lines[i], branches[i]] = False
+            else:
+                lines[asked], branches[asked], columns[asked] = lines[i], branches[i], columns[i]
+                asked += 1
+        if not asked:
+            break
+        lines, branches, columns = lines[:asked], branches[:asked], columns[:asked]
+        owners = np.empty(asked, dtype=np.int64)
+        starts, ends = np.empty((asked, here.shape[2])), np.empty((asked, here.shape[2]))
+        for i in range(asked):
+            m, a = lines[i], branches[i]
+            owners[i] = rows[m]
+            starts[i], ends[i] = here[m, a], there[m, columns[i]]
+        hits = _paths_collide(ep, bound, owners, starts, ends)
+        _take_or_try_next(lines, branches, columns, hits, travel, last, out, pending)
+    for m in range(count):
+        onward[inner[m]] = out[m]
+
+
+@njit
+def _onward_lines(ep, live, collision):
+    """The live rows with a waypoint after the next (their lines ``inner``, rows), their
+    next and following waypoints' candidates (``here``, ``there``), the branches asking
+    (valid, reached without a hit) and the targets (valid, their configuration free)."""
+    k, dof = ep.valid.shape[2], ep.q.shape[1]
+    inner = np.empty(len(live), dtype=np.int64)
+    count = 0
+    for line in range(len(live)):
+        if ep.index[live[line]] + 1 < ep.lengths[live[line]]:
+            inner[count] = line
+            count += 1
+    inner = inner[:count]
+    here, there = np.empty((count, k, dof)), np.empty((count, k, dof))
+    pending = np.empty((count, k), dtype=np.bool_)
+    targets = np.empty((count, k), dtype=np.bool_)
+    rows = np.empty(count, dtype=np.int64)
+    for m in range(count):
+        line = inner[m]
+        r = live[line]
+        w = ep.index[r]
+        rows[m] = r
+        here[m], there[m] = ep.candidates[r, w], ep.candidates[r, w + 1]
+        for b in range(k):
+            pending[m, b] = ep.valid[r, w, b] and not collision[line, b]
+            targets[m, b] = ep.valid[r, w + 1, b] and not ep.endpoint[r, w + 1, b]
+    return inner, rows, here, there, pending, targets
+
+
+@njit
+def _pending_rows(pending):
+    """(lines, branches) of every True entry of ``pending``, in row-major order."""
+    count = 0
+    for m in range(pending.shape[0]):
+        for a in range(pending.shape[1]):
+            count += pending[m, a]
+    lines, branches = np.empty(count, dtype=np.int64), np.empty(count, dtype=np.int64)
+    i = 0
+    for m in range(pending.shape[0]):
+        for a in range(pending.shape[1]):
+            if pending[m, a]:
+                lines[i], branches[i] = m, a
+                i += 1
+    return lines, branches
+
+
+@njit
+def _observe(ep, rows, live, collision, onward):
+    """The observations of ``rows``: each task's template at the row's waypoint, the
+    configuration normalised (clipped to [−1, 1]), and for ``live`` rows slot 0's travel,
+    path collisions and (where the layout has it) onward free travel."""
+    layout, obs = ep.layout, ep.observation
+    scale = ep.numbers[TRAVEL_SCALE]
+    for r in rows:
+        obs[r] = ep.templates[r, ep.index[r]]
+        for j in range(layout[Q1] - layout[Q0]):
+            value = (ep.q[r, j] - ep.centre[j]) / ep.half_range[j]
+            obs[r, layout[Q0] + j] = min(max(value, -1.0), 1.0)
+    for line in range(len(live)):
+        r = live[line]
+        w = ep.index[r]
+        for b in range(ep.valid.shape[2]):
+            travel = ep.values[1, r, 0, b] / scale
+            obs[r, layout[TRAVEL0] + b] = min(travel, 1.0) if ep.valid[r, w, b] else 1.0
+            obs[r, layout[PATH0] + b] = 1.0 if collision[line, b] else 0.0
+            if layout[ONWARD0] >= 0:
+                obs[r, layout[ONWARD0] + b] = min(onward[line, b] / scale, 1.0)
+
+
+# --------------------------------------------------------------------------- advance
+@njit
+def advance(ep, rows, actions, values, flags, success):
+    """Rows ``rows`` move to branch ``actions`` of their next waypoint: per row i the
+    priced ``values[:, i]`` and ``flags[:, i]`` (terminal, collision, invalid) of the move
+    and ``success[i]`` (the episode ended with every waypoint reached, no collision, no
+    invalid branch) are written; the state advances."""
+    for i in range(len(rows)):
+        r, a = rows[i], actions[i]
+        w = ep.index[r]
+        for v in range(values.shape[0]):
+            values[v, i] = ep.values[v, r, 0, a]
+        for f in range(3):
+            flags[f, i] = ep.flags[f, r, 0, a]
+        terminated, hit, invalid = flags[0, i], flags[1, i], flags[2, i]
+        if not invalid:
+            ep.q[r] = ep.candidates[r, w, a]
+        ep.index[r] = ep.lengths[r] if terminated else w + 1
+        ep.collided[r] = ep.collided[r] or hit
+        ep.invalid[r] = ep.invalid[r] or invalid
+        success[i] = (terminated and w == ep.lengths[r] - 1 and not ep.collided[r]
+                      and not ep.invalid[r])
