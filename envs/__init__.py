@@ -96,7 +96,8 @@ for _env_id, _kwargs in ENV_SPECS.items():
 
 def warm_up() -> None:
     """Compile (or load from numba's on-disk cache) every kernel an episode runs: the IK
-    driver, the collision filter, move pricing and observation assembly. ``make`` runs it
+    driver, the collision filter, the clutter, the random chain, the stepping stages and
+    observation assembly, in single and vector envs. ``make`` runs it
     once before parallel processes (test workers) start, so they load instead of compiling
     the same kernels at once."""
     from envs.kinematics import compiled as kinematics
@@ -104,11 +105,19 @@ def warm_up() -> None:
 
     kinematics.warm_up()
     collision.warm_up()
-    for env_id in ("IKBranch/Anthropomorphic-v2", "IKBranch/ToolTransfer-v1"):
-        env = gym.make(env_id)  # a per-episode clutter; a fixed cell
+    # A per-episode clutter (the random chain), a fixed cell, an arm with hundreds of
+    # branches (factored travel summaries), and a vector env (a stack of scenes).
+    for env_id in ("IKBranch/Anthropomorphic-v2", "IKBranch/ToolTransfer-v1",
+                   "IKBranch/UR5e-v0"):
+        env = gym.make(env_id, n_waypoints=2)
         env.reset(seed=0)
         env.step(int(env.unwrapped.action_masks().argmax()))
         env.close()
+    vec = gym.make_vec("IKBranch/Cartesian-v2", num_envs=2,
+                       vectorization_mode="vector_entry_point")
+    _, info = vec.reset(seed=0)
+    vec.step(info["action_mask"].argmax(axis=1))
+    vec.close()
 
 
 __all__ = ["ENV_IDS", "ENV_SPECS", "warm_up"]

@@ -118,7 +118,7 @@ class EpisodeBatch:
         onward = layout.get("slot0/free_travel_out", (-1, -1))
         slices = np.array([*layout["q"], *layout["slot0/travel"],
                            *layout["slot0/path_collision"], *onward], dtype=np.int64)
-        self._episodes = stepping.Episodes(
+        self._episodes = stepping.make_episodes(
             self.q, self.index, self.collided, self.invalid, self.candidates, self.valid,
             self.endpoint, self.free_start, self.lengths, self.templates, self.values,
             self.flags, self.observation, cost.weights, cost.speeds, numbers, slices,

@@ -18,14 +18,16 @@ import numpy as np
 from envs.jit import njit
 from envs.kinematics import Arm
 from envs.models.filter import CompiledFilter
-from envs.models.filter.kernels import check_configurations, check_paths, path_steps
+from envs.models.filter.kernels import bound_configurations, bound_paths, path_steps
 from envs.tasks import Task
 from envs.tasks.base import SAMPLE_ROUNDS
 from envs.tasks.random_reachable import MAX_DRAWS, REDRAWS_BEFORE_BACKTRACK
 
 #: :func:`_chain` status codes.
 DONE, TOO_FEW_FREE, TOO_MANY_DRAWS = 0, 1, 2
-_ONE_SCENE = np.zeros(1, dtype=np.int64)
+#: The flags the kernels take, as run-time booleans: every caller then shares one
+#: compiled version of them (a literal ``True`` would be typed, and compiled, apart).
+_FLAGS = np.array([False, True])
 
 
 def random_chain(arm: Arm, rng: np.random.Generator, n_waypoints: int,
@@ -61,8 +63,8 @@ def _free_rows(rng, lower, upper, bound, count, out, at):
             for j in range(dof):
                 draw[i, j] = rng.uniform(lower[j], upper[j])
         verdict, how = np.empty(rows, dtype=np.int64), np.empty(rows, dtype=np.int8)
-        check_configurations(bound.tree, bound.geometry, bound.motion, bound.exact, _ONE_SCENE,
-                             draw, wanted, True, verdict, how, bound.counters)
+        bound_configurations(bound, np.zeros(1, dtype=np.int64), draw, wanted, _FLAGS[1],
+                             verdict, how)
         for i in range(rows):
             if verdict[i] == 0 and have < count:
                 out[at + have] = draw[i]
@@ -83,8 +85,7 @@ def _links_free(bound, chain, links, count, lever, resolution, verdicts):
     steps = np.empty(count, dtype=np.int64)
     path_steps(starts, ends, lever, resolution, steps)
     out = np.empty(count, dtype=np.int64)
-    check_paths(bound.tree, bound.geometry, bound.motion, bound.exact, _ONE_SCENE, starts, ends,
-                steps, False, out, bound.counters)
+    bound_paths(bound, np.zeros(1, dtype=np.int64), starts, ends, steps, _FLAGS[0], out)
     for m in range(count):
         verdicts[links[m]] = 2 if out[m] >= 0 else 1
 

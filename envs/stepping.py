@@ -29,9 +29,12 @@ from numba.core import types
 from numba.experimental import structref
 
 from envs.jit import njit
-from envs.models.filter.kernels import check_paths, path_steps
+from envs.models.filter.kernels import bound_paths, path_steps
 from envs.moves import _next_targets, _onward_travel, _price, _take_or_try_next
 
+#: The flags the filter's kernels take, as run-time booleans: every caller then shares one
+#: compiled version of them (a literal ``False`` would be typed, and compiled, apart).
+_FLAGS = np.array([False, True])
 #: Slots of the path memo (a power of two); it starts afresh when half are taken.
 MEMO_SLOTS = 2**16
 #: Indices into ``Episodes.numbers``.
@@ -62,6 +65,20 @@ class Episodes(structref.StructRefProxy):
 
 
 structref.define_proxy(Episodes, _EpisodesType, list(FIELDS))
+
+
+@njit
+def make_episodes(q, index, collided, invalid, candidates, valid, endpoint, free_start,
+                  lengths, templates, values, flags, observation, weights, speeds, numbers,
+                  layout, centre, half_range, lever, scenes, tokens, memo_keys, memo_tokens,
+                  memo_verdicts, memo_count):
+    """An :class:`Episodes` of these arrays (``FIELDS`` order), made in compiled code:
+    numba caches this on disk, where the proxy's own constructor is compiled again in
+    every process."""
+    return Episodes(q, index, collided, invalid, candidates, valid, endpoint, free_start,
+                    lengths, templates, values, flags, observation, weights, speeds, numbers,
+                    layout, centre, half_range, lever, scenes, tokens, memo_keys, memo_tokens,
+                    memo_verdicts, memo_count)
 
 
 def memo_arrays(dof: int) -> tuple[np.ndarray, ...]:
@@ -142,8 +159,7 @@ def _paths_collide(ep, bound, rows, starts, ends):
         for i in range(misses):
             scenes[i] = ep.scenes[rows[picked[i]]]
         index = np.empty(misses, dtype=np.int64)
-        check_paths(bound.tree, bound.geometry, bound.motion, bound.exact, scenes, first,
-                    last, steps, False, index, bound.counters)
+        bound_paths(bound, scenes, first, last, steps, _FLAGS[0], index)
         for i in range(misses):
             m = picked[i]
             out[m] = index[i] >= 0

@@ -47,7 +47,7 @@ import mujoco
 import numpy as np
 
 from .. import native
-from .kernels import COUNTERS, Bound, bound_configurations, bound_paths, path_steps
+from .kernels import COUNTERS, bound_configurations, bound_paths, make_bound, path_steps
 from .layout import (
     DISTANCE_TOLERANCE,
     PER_SCENE,
@@ -79,7 +79,7 @@ class CompiledFilter:
         """Read ``scene`` (one scene) and ``exact`` (its (1, 6) MuJoCo addresses) from now on."""
         self.scene, self._exact = scene, exact
         # The kernels' leading arguments, built once (the arrays are refreshed in place).
-        self._bound = Bound(scene.tree, scene.geometry, scene.motion, exact, self.counters)
+        self._bound = make_bound(scene.tree, scene.geometry, scene.motion, exact, self.counters)
 
     def refresh_static(self, geoms: np.ndarray | None = None) -> None:
         """Follow changed static geoms of the model (see :func:`refresh_static`)."""
@@ -145,8 +145,8 @@ class FilterStack:
                 name: array[index : index + 1] for name, array in stacked.items()}),
                 self._exact[index : index + 1])
         self.counters = np.zeros(len(COUNTERS), dtype=np.int64)
-        self._bound = Bound(self.scene.tree, self.scene.geometry, self.scene.motion,
-                            self._exact, self.counters)
+        self._bound = make_bound(self.scene.tree, self.scene.geometry, self.scene.motion,
+                                 self._exact, self.counters)
 
     def collide(self, scenes: np.ndarray, rows: np.ndarray) -> np.ndarray:
         """(M,) 0 where configuration ``rows[i]`` is free in scene ``scenes[i]``, > 0 where

@@ -490,6 +490,13 @@ structref.define_proxy(Bound, _BoundType, ["tree", "geometry", "motion", "exact"
 
 
 @njit
+def make_bound(tree, geometry, motion, exact, counters):
+    """A :class:`Bound` of these arrays, made in compiled code: numba caches this on disk,
+    where the proxy's own constructor is compiled again in every process (~0.5 s)."""
+    return Bound(tree, geometry, motion, exact, counters)
+
+
+@njit
 def bound_paths(bound, scenes, start_rows, end_rows, steps, first, out):
     """:func:`check_paths` with the arguments of ``bound``."""
     check_paths(bound.tree, bound.geometry, bound.motion, bound.exact, scenes, start_rows,
