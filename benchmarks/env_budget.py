@@ -6,9 +6,10 @@ The loop of ``env_steps.py`` (random *masked* actions from a seeded generator, r
 included), after a warm-up of ``--warmup`` seconds, with each stage timed per episode (ms):
 
 - ``scene``: laying the per-episode clutter and refreshing the collision filter;
-- ``task``: the task generator (for random reachable waypoints its compiled chain of
-  collision-free configurations and paths, ``envs/random_chain.py``);
-- ``candidates``: every waypoint's IK and the configuration check of every candidate;
+- ``task``: drawing the task (for random reachable waypoints the compiled chain of
+  collision-free configurations and paths, ``envs/random_chain.py``, and its poses);
+- ``candidates``: every waypoint's IK and the configuration check of every candidate
+  (``envs/resets.py``);
 - ``reset, rest``: the rest of ``reset`` (observation templates, the first observation);
 - ``steps``: all ``step`` calls of the episode (their path checks, prices, observations);
 - per episode, who decided the samples the filter saw: its bounds (proved free), its
@@ -30,9 +31,8 @@ import numpy as np
 from env_steps import _loop, _runner
 
 import envs
-import envs.ik_branch_env as single
+import envs.resets as resets
 from envs.models.filter import COUNTERS
-from envs.tasks.random_reachable import random_reachable
 
 #: Stage name -> seconds spent, filled by the timers below.
 SPENT: dict[str, float] = {}
@@ -50,17 +50,16 @@ def _timed(stage: str, function):
     return timed
 
 
-# The random task's compiled chain (the env calls it in place of the generator).
-single.random_chain = _timed("task", single.random_chain)
+# The stages of a reset (envs/resets.py): the tasks drawn, the ladders solved.
+resets._draw_tasks = _timed("task", resets._draw_tasks)
+resets._solve = _timed("candidates", resets._solve)
 
 
 def budget(env_id: str, seconds: float, warmup: float) -> dict:
     env = gym.make(env_id)
     base = env.unwrapped
     base._lay_scene = _timed("scene", base._lay_scene)
-    if base._generator is not random_reachable:  # (the random task runs random_chain)
-        base._generator = _timed("task", base._generator)
-    base.pricer.task = _timed("candidates", base.pricer.task)
+    base.pricer.task = _timed("candidates", base.pricer.task)  # tasks of finite pose sets
     env.reset(seed=0)
     action = _runner(env, 0)
     counters = base.checker._filter.counters if base.checker._filter is not None else None

@@ -17,12 +17,11 @@ from envs.models.scene_file import base_pose, load_scene_file
 from envs.models.scenes import CLUTTER_SLOTS, ClutterSlots, draw_clutter
 from envs.moves import MovePricer, TaskMoves
 from envs.observations import ObservationBuilder
-from envs.random_chain import random_chain
+from envs.resets import begin_episodes
 from envs.seeds import TRAIN_SCENES
 from envs.task_frame import FramedArm, TaskFrame
 from envs.tasks import TASKS, Task
 from envs.tasks.file_task import FileTask
-from envs.tasks.random_reachable import random_reachable
 from envs.tasks.waypoint_file import read_waypoints
 from envs.tools import Tool
 
@@ -449,26 +448,28 @@ class IKBranchEnv(gym.Env):
     def _new_episode(self, seed: int | None) -> dict:
         """Everything of ``reset`` but the first observation (a vector env assembles those
         of its sub-envs together): seed, lay the clutter, draw the task, solve its ladder
-        and begin the episode. Returns the reset's ``info`` without the action mask."""
+        and begin the episode (``envs.resets``, for a batch of one). Returns the reset's
+        ``info`` without the action mask."""
+        return begin_episodes([self], [seed], self.checker._filter,
+                              np.zeros(1, dtype=np.int64))[0]
+
+    def _reset_scene(self, seed: int | None) -> dict:
+        """A reset's first part: seed the env's generator and lay a new clutter where the
+        env draws one per episode. Returns the reset's ``info`` so far."""
         super().reset(seed=seed)
-        pricer = self.pricer
         if self._clutter is not None:
             self._lay_scene(int(self.np_random.integers(*self.scene_seeds)))
-        if self._generator is random_reachable:  # its compiled fast path (the same task)
-            checker = self.checker
-            task = random_chain(self._task_arm, self.np_random, self.n_waypoints,
-                                checker._filter, checker.lever, checker.resolution)
-        else:
-            task = self._generator(self._task_arm, self.np_random, self.n_waypoints,
-                                   pricer.is_free, pricer.is_path_free)
-        if not self.task_frame.identity:  # the task speaks in the cell, of the TCP
-            task = Task(start=task.start, poses=self.task_frame.to_fk(task.poses),
-                        free_start=task.free_start)
-        self._start(task, pricer.task(task))
         info: dict[str, Any] = {"waypoint": 0}
         if self._clutter is not None:
             info["scene_seed"] = self.scene_seed
         return info
+
+    def _in_fk_frame(self, task: Task) -> Task:
+        """``task`` with its poses in the fk frame (tasks speak in the cell, of the TCP)."""
+        if self.task_frame.identity:
+            return task
+        return Task(start=task.start, poses=self.task_frame.to_fk(task.poses),
+                    free_start=task.free_start)
 
     def _lay_scene(self, seed: int) -> None:
         """Stand the clutter of scene ``seed`` in the model (the env's and the checker's),

@@ -144,27 +144,12 @@ class MovePricer:
 
     def _endpoint_collision(self, candidates: np.ndarray, valid: np.ndarray) -> np.ndarray:
         """(M, K) bool: each valid candidate's configuration collides (``candidates`` (M, K,
-        dof) of M poses). The turn copies of one closed-form branch place every link
-        alike (up to rounding far below the filter's tolerances), so one check of the
-        first copy serves them all where a proof of the filter decided it; where MuJoCo
-        decided, every copy is asked of MuJoCo itself."""
-        endpoint = np.zeros(valid.shape, dtype=bool)
-        rows, branches = np.nonzero(valid)
-        if not len(rows):
-            return endpoint
-        group = rows * self.arm.n_closed_form + self.arm.branch_closed_form[branches]
-        _, first, inverse = np.unique(group, return_index=True, return_inverse=True)
-        representatives = np.ascontiguousarray(candidates[rows[first], branches[first]])
-        _finite_rows(representatives, "configurations")
-        hits, proved = self.checker.rows_collide_proved(representatives)
-        verdict = hits[inverse]
-        again = ~proved[inverse]
-        again[first] = False  # the representatives themselves: MuJoCo's own verdict
-        if again.any():
-            verdict[again] = self.checker.rows_collide(
-                np.ascontiguousarray(candidates[rows[again], branches[again]]))
-        endpoint[rows, branches] = verdict
-        return endpoint
+        dof) of M poses), through this pricer's checker (:func:`endpoint_collision`)."""
+        checker = self.checker
+        return endpoint_collision(
+            self.arm, candidates, valid,
+            lambda rows, _: checker.rows_collide_proved(rows),
+            lambda rows, _: checker.rows_collide(rows), np.zeros(len(valid), dtype=np.int64))
 
     def task(self, task: Task) -> TaskMoves:
         """The ladder of ``task``: its candidates solved, ready to price moves."""
@@ -250,6 +235,42 @@ class MovePricer:
     def is_path_free(self, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
         """(M,) True where the path ``q0[i]`` → ``q1[i]`` is collision-free (one call)."""
         return ~self.paths_collide(np.asarray(q0), np.asarray(q1))
+
+
+#: ``decide(rows (M, dof), scenes (M,)) -> (collides (M,), proved (M,))``: configuration
+#: verdicts, each in its scene, and whether a proof of the filter decided each (rather
+#: than MuJoCo); ``recheck(rows, scenes) -> collides``: MuJoCo's own verdicts.
+Decide = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+Recheck = Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+
+def endpoint_collision(arm: Arm, candidates: np.ndarray, valid: np.ndarray, decide: Decide,
+                       recheck: Recheck, scenes: np.ndarray) -> np.ndarray:
+    """(M, K) bool: each valid candidate's configuration collides (``candidates`` (M, K,
+    dof) of M poses, pose m in scene ``scenes[m]``). The turn copies of one closed-form
+    branch place every link alike (up to rounding far below the filter's tolerances), so
+    one check of the first copy serves them all where a proof of the filter decided it;
+    where MuJoCo decided, every copy is asked of MuJoCo itself."""
+    endpoint = np.zeros(valid.shape, dtype=bool)
+    rows, branches = np.nonzero(valid)
+    if not len(rows):
+        return endpoint
+    if arm.turn_windows:
+        group = rows * arm.n_closed_form + arm.branch_closed_form[branches]
+        _, first, inverse = np.unique(group, return_index=True, return_inverse=True)
+    else:  # no turn copies: every candidate its own
+        first = inverse = np.arange(len(rows))
+    representatives = np.ascontiguousarray(candidates[rows[first], branches[first]])
+    _finite_rows(representatives, "configurations")
+    hits, proved = decide(representatives, scenes[rows[first]])
+    verdict = hits[inverse]
+    again = ~proved[inverse]
+    again[first] = False  # the representatives themselves: MuJoCo's own verdict
+    if again.any():
+        verdict[again] = recheck(
+            np.ascontiguousarray(candidates[rows[again], branches[again]]), scenes[rows[again]])
+    endpoint[rows, branches] = verdict
+    return endpoint
 
 
 #: Rows of the value block of :func:`_price`; the flag block holds terminal, collision,

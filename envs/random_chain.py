@@ -34,6 +34,16 @@ def random_chain(arm: Arm, rng: np.random.Generator, n_waypoints: int,
                  checks: CompiledFilter, lever: np.ndarray, resolution: float) -> Task:
     """``random_reachable(arm, rng, n_waypoints, …)`` with the predicates of ``checks``
     (the env's filter; ``lever`` and ``resolution`` its checker's path grid)."""
+    chain = random_chain_configurations(arm, rng, n_waypoints, checks, lever, resolution)
+    return Task(start=chain[0], poses=arm.fk(chain[1:]))
+
+
+def random_chain_configurations(arm: Arm, rng: np.random.Generator, n_waypoints: int,
+                                checks: CompiledFilter, lever: np.ndarray,
+                                resolution: float) -> np.ndarray:
+    """The chain of :func:`random_chain`, (n_waypoints + 1, dof): its start and the
+    configurations whose poses are the waypoints (a batch of envs takes their poses in
+    one ``arm.fk`` call)."""
     lower, upper = arm.joint_limits[:, 0].copy(), arm.joint_limits[:, 1].copy()
     chain = np.empty((n_waypoints + 1, arm.dof))
     status, have, count = _chain(rng, lower, upper, n_waypoints, checks._bound, lever,
@@ -46,7 +56,7 @@ def random_chain(arm: Arm, rng: np.random.Generator, n_waypoints: int,
         raise RuntimeError(
             f"{arm.name}: no chain of collision-free paths after {MAX_DRAWS} draws; "
             "the scene leaves too little free space")
-    return Task(start=chain[0], poses=arm.fk(chain[1:]))
+    return chain
 
 
 @njit

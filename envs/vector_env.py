@@ -12,6 +12,7 @@ from gymnasium.vector.utils import batch_space
 from envs.episodes import EpisodeBatch, Steps
 from envs.ik_branch_env import IKBranchEnv
 from envs.models.filter import FilterStack
+from envs.resets import begin_episodes
 
 
 class IKBranchVectorEnv(VectorEnv):
@@ -259,8 +260,10 @@ class IKBranchVectorEnv(VectorEnv):
         (without the masks)."""
         infos: dict[str, Any] = {}
         n = self.num_envs
-        for row, seed in zip(rows.tolist(), seeds, strict=True):
-            for key, value in self.envs[row]._new_episode(seed).items():
+        begun = begin_episodes([self.envs[row] for row in rows.tolist()], seeds, self._stack,
+                               rows)
+        for row, info in zip(rows.tolist(), begun, strict=True):
+            for key, value in info.items():
                 _put(infos, key, np.array([row]), np.array([value]), n=n)
         return infos
 

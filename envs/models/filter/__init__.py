@@ -155,6 +155,12 @@ class FilterStack:
         bound_configurations(self._bound, scenes, rows, 0, True, out, how)
         return out
 
+    def collide_how(self, scenes: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`collide`, and per row who decided it (``CompiledFilter.collide_how``)."""
+        out, how = np.empty(len(rows), dtype=np.int64), np.empty(len(rows), dtype=np.int8)
+        bound_configurations(self._bound, scenes, rows, 0, True, out, how)
+        return out, how
+
     def paths(self, scenes: np.ndarray, start_rows: np.ndarray, end_rows: np.ndarray,
               steps: np.ndarray, first: bool) -> np.ndarray:
         """:meth:`CompiledFilter.paths` of paths each in its scene ``scenes[m]``."""

@@ -1,0 +1,115 @@
+"""New episodes for a batch of envs: a reset, with what several envs can do at once done
+at once.
+
+A reset seeds the env, lays its clutter, draws its task, solves every waypoint's IK and
+checks every candidate, then begins the episode. The single env resets a batch of one; a
+vector env the sub-envs whose episodes ended, together:
+
+- per env: the seed, the clutter (its own scene) and the task — the random task's chain
+  of configurations in one compiled call each (``envs.random_chain``), other tasks from
+  their generators;
+- at once: the waypoint poses of every random chain (one ``arm.fk`` call), the IK of
+  every waypoint (one call of the compiled driver: a pose's branches never depend on its
+  batch) and the endpoint check of every candidate (one call of the filter, each in its
+  env's scene; turn copies share a check, ``envs.moves.endpoint_collision``);
+- per env: its ladder and observation templates, the episode begun.
+
+Tasks from a finite pose set (the milling cell's tool changes, a waypoint file) are
+solved through each env's pricer instead, whose pose cache answers them once met.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from envs.models.filter import CompiledFilter, FilterStack
+from envs.models.filter.kernels import BY_MUJOCO
+from envs.moves import TaskMoves, endpoint_collision
+from envs.random_chain import random_chain_configurations
+from envs.tasks import Task
+from envs.tasks.random_reachable import random_reachable
+
+if TYPE_CHECKING:
+    from envs.ik_branch_env import IKBranchEnv
+
+
+def begin_episodes(envs: Sequence[IKBranchEnv], seeds: Sequence[int | None],
+                   checks: CompiledFilter | FilterStack,
+                   scenes: np.ndarray) -> list[dict[str, Any]]:
+    """Reset ``envs`` (env i with ``seeds[i]``; ``scenes[i]`` its scene in ``checks``, the
+    filter of the lone env or the vector env's stack): each begins a new episode. Returns
+    each reset's ``info`` (without the action mask)."""
+    infos = [env._reset_scene(seed) for env, seed in zip(envs, seeds, strict=True)]
+    tasks = _draw_tasks(envs)
+    solved = [i for i, env in enumerate(envs) if not getattr(env._generator, "finite_poses",
+                                                             False)]
+    ladders: list[TaskMoves | None] = [None] * len(envs)
+    if solved:
+        for i, ladder in zip(solved, _solve([envs[i] for i in solved], [tasks[i] for i in solved],
+                                            checks, scenes[solved]), strict=True):
+            ladders[i] = ladder
+    for i, env in enumerate(envs):
+        ladder = ladders[i] if ladders[i] is not None else env.pricer.task(tasks[i])
+        env._start(tasks[i], ladder)
+    return infos
+
+
+def _draw_tasks(envs: Sequence[IKBranchEnv]) -> list[Task]:
+    """Each env's task, in the cell frame turned into the fk frame: the random task's chains
+    drawn one env at a time (each from its own generator), their poses in one call."""
+    tasks: list[Task | None] = [None] * len(envs)
+    chained = [i for i, env in enumerate(envs) if env._generator is random_reachable]
+    for i, env in enumerate(envs):
+        if i not in chained:
+            pricer = env.pricer
+            tasks[i] = env._generator(env._task_arm, env.np_random, env.n_waypoints,
+                                      pricer.is_free, pricer.is_path_free)
+    if chained:
+        chains = np.array([
+            random_chain_configurations(envs[i]._task_arm, envs[i].np_random,
+                                        envs[i].n_waypoints, envs[i].checker._filter,
+                                        envs[i].checker.lever, envs[i].checker.resolution)
+            for i in chained])
+        count, length, dof = chains.shape
+        poses = envs[chained[0]]._task_arm.fk(chains[:, 1:].reshape(-1, dof))
+        poses = poses.reshape(count, length - 1, 4, 4)
+        for j, i in enumerate(chained):
+            tasks[i] = Task(start=chains[j, 0], poses=poses[j])
+    return [envs[i]._in_fk_frame(task) for i, task in enumerate(tasks)]
+
+
+def _solve(envs: Sequence[IKBranchEnv], tasks: Sequence[Task],
+           checks: CompiledFilter | FilterStack, scenes: np.ndarray) -> list[TaskMoves]:
+    """The ladders of ``tasks`` (of ``envs``, env i in scene ``scenes[i]``): one IK call
+    and one endpoint check for all."""
+    arm = envs[0].arm
+    n = tasks[0].n_waypoints
+    poses = np.ascontiguousarray(np.concatenate([task.poses for task in tasks]))
+    candidates, valid = arm.ik(poses)
+    pose_scenes = np.repeat(np.asarray(scenes, dtype=np.int64), n)
+    if isinstance(checks, FilterStack):
+        def decide(rows, where):
+            out, how = checks.collide_how(where, rows)
+            return out > 0, how != BY_MUJOCO
+
+        def recheck(rows, where):
+            return checks.collide(where, rows) > 0
+    else:  # one env's own filter: every pose in its one scene
+        def decide(rows, where):
+            out, how = checks.collide_how(rows)
+            return out > 0, how != BY_MUJOCO
+
+        def recheck(rows, where):
+            return checks.collide(rows) > 0
+    endpoint = endpoint_collision(arm, candidates, valid, decide, recheck, pose_scenes)
+    ladders = []
+    for i, (env, task) in enumerate(zip(envs, tasks, strict=True)):
+        rows = slice(i * n, (i + 1) * n)
+        if not valid[rows].any(axis=-1).all():
+            raise RuntimeError("task generator produced a waypoint without a valid branch")
+        ladders.append(TaskMoves(env.pricer, task, candidates[rows], valid[rows],
+                                 endpoint[rows]))
+    return ladders
