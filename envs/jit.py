@@ -14,12 +14,13 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import os
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numba
+
+from envs.kinematics.compiled import writable_cache
 
 _ROOT = Path(__file__).resolve().parent
 
@@ -38,25 +39,16 @@ def _sources() -> list[Path]:
 
 @functools.cache
 def cache_directory() -> str | None:
-    """The cache directory of this version of the kernels: ``numba-<hash>`` under
-    ``NUMBA_CACHE_DIR`` if set, else under ``envs/__pycache__`` (else the user's cache
-    directory); None if none is writable (kernels are then compiled in every process)."""
+    """The cache directory of this version of the kernels: ``numba-<hash>``
+    (``envs.kinematics.compiled.writable_cache``: under ``NUMBA_CACHE_DIR`` if set, else
+    ``envs/__pycache__``, else the user's cache directory); None if none is writable
+    (kernels are then compiled in every process)."""
     digest = hashlib.sha256()
     for source in _sources():
         digest.update(str(source.relative_to(_ROOT)).encode())
         digest.update(source.read_bytes())
-    name = f"numba-{digest.hexdigest()[:16]}"
-    roots = [Path(os.environ["NUMBA_CACHE_DIR"])] if os.environ.get("NUMBA_CACHE_DIR") else []
-    roots += [_ROOT / "__pycache__", Path.home() / ".cache" / "ikbranch"]
-    for root in roots:
-        directory = root / name
-        try:
-            directory.mkdir(parents=True, exist_ok=True)
-        except OSError:
-            continue
-        if os.access(directory, os.W_OK):
-            return str(directory)
-    return None
+    directory = writable_cache(f"numba-{digest.hexdigest()[:16]}", _ROOT / "__pycache__")
+    return None if directory is None else str(directory)
 
 
 def njit(function: Callable | None = None, **options: Any) -> Any:

@@ -322,12 +322,17 @@ def source_digest(package: Path) -> str:
 
 def cache_directory() -> Path | None:
     """Where the compiled driver is cached: a directory named by the hash of this package's
-    sources, under ``NUMBA_CACHE_DIR`` if set, else under this package's ``__pycache__``
-    (else the user's cache directory); None if none is writable (compiled per process)."""
+    sources (:func:`writable_cache`)."""
     here = Path(__file__).resolve().parent
-    name = f"numba-{source_digest(here)}"
+    return writable_cache(f"numba-{source_digest(here)}", here / "__pycache__")
+
+
+def writable_cache(name: str, beside: Path) -> Path | None:
+    """The directory ``name`` under ``NUMBA_CACHE_DIR`` if set, else under ``beside`` (the
+    sources' ``__pycache__``), else under the user's cache directory: the first that can be
+    made and written; None if none can (kernels are then compiled in every process)."""
     roots = [Path(os.environ["NUMBA_CACHE_DIR"])] if os.environ.get("NUMBA_CACHE_DIR") else []
-    roots += [here / "__pycache__", Path.home() / ".cache" / "ikbranch"]
+    roots += [beside, Path.home() / ".cache" / "ikbranch"]
     for root in roots:
         directory = root / name
         try:

@@ -59,7 +59,9 @@ def test_path_verdicts_and_first_samples_equal_the_loop(arm_name, scene):
 
 
 @pytest.mark.parametrize(("arm_name", "scene"), scene_cases())
-def test_configuration_contact_counts_equal_the_loop(arm_name, scene):
+def test_configuration_counts_and_verdicts_equal_the_loop(arm_name, scene):
+    # Counts are always MuJoCo's own; verdicts may come from inner shapes (witnesses)
+    # instead of MuJoCo: the same verdicts.
     arm = make_arm(arm_name)
     model = build_model(arm_name, scene)
     compiled = CollisionChecker(model, dof=arm.dof, backend="compiled")
@@ -69,23 +71,11 @@ def test_configuration_contact_counts_equal_the_loop(arm_name, scene):
     counts = loop.n_contacts(q)
     np.testing.assert_array_equal(compiled.n_contacts(q), counts)
     assert compiled.n_contacts(q.reshape(2, -1, arm.dof)).shape == (2, PATHS // 2)
-
-
-@pytest.mark.parametrize(("arm_name", "scene"), scene_cases())
-def test_configuration_verdicts_equal_the_loop(arm_name, scene):
-    # Verdicts may come from inner shapes (witnesses) instead of MuJoCo: the same verdicts.
-    arm = make_arm(arm_name)
-    model = build_model(arm_name, scene)
-    compiled = CollisionChecker(model, dof=arm.dof, backend="compiled")
-    loop = CollisionChecker(model, dof=arm.dof, backend="loop")
-    rng = np.random.default_rng(21)
-    q = rng.uniform(arm.joint_limits[:, 0], arm.joint_limits[:, 1], size=(PATHS, arm.dof))
-    expected = loop.collides(q)
     before = compiled._filter.counters.copy()
-    np.testing.assert_array_equal(compiled.collides(q), expected)
+    np.testing.assert_array_equal(compiled.collides(q), counts > 0)
     witnessed = (compiled._filter.counters - before)[4]
-    if expected.any():
-        assert witnessed > 0.5 * expected.sum()  # most contacts need no MuJoCo call
+    if counts.any():
+        assert witnessed > 0.5 * (counts > 0).sum()  # most contacts need no MuJoCo call
 
 
 @pytest.mark.parametrize("backend", ["compiled", "loop"])

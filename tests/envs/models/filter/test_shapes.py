@@ -75,6 +75,16 @@ def test_segment_box_distance_is_exact():
         assert value == pytest.approx(dense, abs=2e-3 * np.linalg.norm(b - a))
 
 
+def _place_bodies(model: mujoco.MjModel, names, rng, scale: float) -> None:
+    """Each named body at a random place (normal, ``scale`` m) and rotation."""
+    for name in names:
+        rotation = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+        rotation *= np.sign(np.linalg.det(rotation))
+        quat = np.zeros(4)
+        mujoco.mju_mat2Quat(quat, rotation.ravel())
+        model.body(name).pos, model.body(name).quat = rng.normal(scale=scale, size=3), quat
+
+
 def test_box_box_bound_never_exceeds_the_distance():
     rng = np.random.default_rng(29)
     spec = mujoco.MjSpec()
@@ -89,12 +99,7 @@ def test_box_box_bound_never_exceeds_the_distance():
     geoms = [model.geom(name).id for name in ("one", "two")]
     close = 0
     for _ in range(400):
-        for name in ("one", "two"):
-            rotation = np.linalg.qr(rng.normal(size=(3, 3)))[0]
-            rotation *= np.sign(np.linalg.det(rotation))
-            quat = np.zeros(4)
-            mujoco.mju_mat2Quat(quat, rotation.ravel())
-            model.body(name).pos, model.body(name).quat = rng.normal(scale=0.4, size=3), quat
+        _place_bodies(model, ("one", "two"), rng, 0.4)
         mujoco.mj_kinematics(model, data)
         frames = [(tuple(data.geom_xpos[g]), tuple(data.geom_xmat[g]), *model.geom_aabb[g][3:])
                   for g in geoms]
@@ -160,12 +165,7 @@ def test_inner_shapes_closer_than_the_margin_are_mujocos_contacts(first, second)
     skewer_pair = {first, second} == {"capsule", "box"}
     witnessed = contacts = 0
     for _ in range(2000):
-        for name in ("one", "two"):
-            rotation = np.linalg.qr(rng.normal(size=(3, 3)))[0]
-            rotation *= np.sign(np.linalg.det(rotation))
-            quat = np.zeros(4)
-            mujoco.mju_mat2Quat(quat, rotation.ravel())
-            model.body(name).pos, model.body(name).quat = rng.normal(scale=0.2, size=3), quat
+        _place_bodies(model, ("one", "two"), rng, 0.2)
         mujoco.mj_kinematics(model, data)
         mujoco.mj_collision(model, data)
         contacts += data.ncon > 0
