@@ -165,3 +165,29 @@ def test_rendering_gives_every_sub_envs_frame():
     assert len(frames) == 2 and all(f.shape == (48, 64, 3) for f in frames)
     assert frames[0].std() > 0
     vec.close()
+
+
+def test_a_cell_engineers_file_task_in_a_scene_file_is_batched_alike():
+    # The waypoint file, scene file and tool of the welding example: a task from a finite
+    # pose set (solved through each sub-env's pose cache) in a cell read from MJCF.
+    import json
+    from pathlib import Path
+
+    examples = Path(__file__).resolve().parents[2] / "examples"
+    kwargs = {"arm": "abb_irb2400", "scene": "file", "task": "file",
+              "scene_file": str(examples / "welding_cell.xml"),
+              "task_file": str(examples / "welding_seam.csv"),
+              "tool": json.loads((examples / "welding_torch.json").read_text()),
+              "lookahead": 1}
+    native = IKBranchVectorEnv(num_envs=2, autoreset_mode="same_step", **kwargs)
+    sync = gym.vector.SyncVectorEnv([lambda: gym.make("IKBranch/Cartesian-v2", **kwargs)] * 2,
+                                    autoreset_mode=AutoresetMode.SAME_STEP)
+    first = native.reset(seed=3)
+    assert data_equivalence(first, sync.reset(seed=3), exact=True)
+    infos = first[1]
+    rng = np.random.default_rng(5)
+    for _ in range(12):
+        actions = _actions(infos["action_mask"], rng, p_unmasked=0.0)
+        step = native.step(actions)
+        assert data_equivalence(step, sync.step(actions), exact=True)
+        infos = step[4]
