@@ -63,7 +63,7 @@ ENV_SPECS.update({
     "IKBranch/RodMechanism-v2": {
         "arm": "rod_mechanism", "scene": "empty", "task": "random", **_COMPACT,
     },
-    # Industrial arms (issue 12): their real limits, every turn branch.
+    # Industrial arms: their real limits, every turn branch.
     "IKBranch/KukaKR6-v0": {"arm": "kuka_kr6_r700", **_CLUTTER},
     "IKBranch/UR5e-v0": {"arm": "ur5e", **_CLUTTER},
     # The milling cell's tool changes with a real arm: an IRB 4600 (j4, j6 ±400°: 72

@@ -1,8 +1,8 @@
 """Publish a sweep: ``python -m train.aggregate --publish [--root runs/sweep]``.
 
 First every finished trial's records are archived in the repository
-(``docs/results/sweep/trials``, :func:`archive`), so sweeps on other machines and in later
-sessions add to them; then, from the archive's aggregate (``train.aggregate``), for every
+(``docs/results/sweep/trials``, :func:`archive`), so sweeps on other machines and later
+sweeps add to them; then, from the archive's aggregate (``train.aggregate``), for every
 env id with baselines:
 
 - ``docs/results/sweep/aggregate.json``: the interval estimates of every policy;
@@ -39,7 +39,7 @@ README = ROOT / "README.md"
 #: The README's generated results table sits between these two lines.
 README_BEGIN = "<!-- results: written by python -m train.aggregate --publish; do not edit -->"
 README_END = "<!-- /results -->"
-#: The learned policies' rivals in the goal checks (issue 14).
+#: The learned policies' rivals in the goal checks.
 PAPER_RULE, RECEDING_DP = RIVALS
 #: Ids whose goal is success ≥ 99 % and an IQM gap ≤ 2 % on held-out scenes.
 HEADLINE_GOALS = ("IKBranch/ToolTransfer-v1", "IKBranch/Anthropomorphic-v2")
@@ -147,7 +147,7 @@ def carry_over(fresh: dict[str, dict[str, Any]],
     ``published`` (the previous ``aggregate.json``), each marked ``carried_over``.
 
     A row is carried over where the archive holds none of its trials or only some of its
-    seeds (so a sweep that adds one id, a sweep still under way, or a session whose
+    seeds (so a sweep that adds one id, a sweep still under way, or a run whose
     archive lost trials, does not erase or shrink the rows it did not re-run), and only
     where the id's baselines aggregate to exactly the published ones: the row's
     probabilities of improvement were computed against those scores.
@@ -244,7 +244,7 @@ def publish(root: Path, records: dict[str, dict[str, Any]], *, out: Path = SWEEP
 
 
 def goal_lines(records: dict[str, dict[str, Any]]) -> list[str]:
-    """Issue 14's goals, each checked against the aggregate, met or not."""
+    """The published goals, each checked against the aggregate, met or not."""
     lines = []
     for env_id, record in records.items():
         policies = record["policies"]
@@ -321,7 +321,7 @@ def render_sweep(aggregate_path: Path = SWEEP_RESULTS / "aggregate.json") -> lis
         "`python -m train.sweep --env ID --seeds 0-4` then "
         "`python -m train.aggregate --publish`.",
         "",
-        "### Goals (issue 14)",
+        "### Goals",
         "",
         *goal_lines(records),
         "",

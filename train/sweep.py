@@ -16,7 +16,7 @@ Ray starts embedded on this machine's cores unless ``--address`` names an existi
 cluster (``auto``, ``ray://host:10001``; the root must then be storage every node sees).
 A failed trial is retried (``--max-failures``) and continues from its last checkpoint; a
 trial whose ``evaluation.json`` exists is skipped, so running the same command again
-resumes a sweep. Across machines and sessions: ``python -m train.aggregate --publish``
+resumes a sweep. Across machines and runs: ``python -m train.aggregate --publish``
 archives every finished trial's records (not its checkpoints) in the repository,
 ``docs/results/sweep/trials`` (``ARCHIVE``, laid out as a root), and a trial archived
 there is skipped too.
@@ -37,7 +37,7 @@ from train.hyperparams import ALGORITHMS
 ROOT = Path(__file__).resolve().parent.parent
 #: Finished trials' records, committed (``train.publish.archive``): a root without models.
 ARCHIVE = ROOT / "docs" / "results" / "sweep" / "trials"
-#: Held-out tasks per evaluation (issue 14: at least 200 per row).
+#: Held-out tasks per evaluation (at least 200 per row).
 EPISODES = 200
 BASELINES_TRIAL = "baselines"
 

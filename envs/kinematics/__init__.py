@@ -50,7 +50,7 @@ _ARM_CLASSES: dict[str, type[Arm]] = {
 ARM_NAMES: tuple[str, ...] = tuple(_ARM_CLASSES)
 #: The arms of the seeds (papers): closed-form branches only, limits within [−π, π].
 SEED_ARM_NAMES: tuple[str, ...] = ARM_NAMES[:9]
-#: Real industrial arms (issue 12): data-sheet parameters and limits, turn branches.
+#: Real industrial arms: data-sheet parameters and limits, turn branches.
 INDUSTRIAL_ARM_NAMES: tuple[str, ...] = ARM_NAMES[9:]
 
 

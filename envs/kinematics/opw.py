@@ -328,7 +328,7 @@ OpwArm._kernel = staticmethod(opw_kernel)
 class KukaKr6R700(OpwArm):
     """KUKA KR 6 R700 sixx (KR AGILUS). Geometry, offsets and signs: opw_kinematics'
     ``makeKukaKR6_R700_sixx()`` (also moveit_opw_kinematics_plugin's example); limits: the
-    KR 6 R700 sixx data sheet, as issue 12 lists them."""
+    KR 6 R700 sixx data sheet."""
 
     name: ClassVar[str] = "kuka_kr6_r700"
 
@@ -350,8 +350,7 @@ class KukaKr6R700(OpwArm):
 @dataclass(frozen=True, eq=False)
 class AbbIrb2400(OpwArm):
     """ABB IRB 2400/10. Geometry and offsets: opw_kinematics' ``makeIrb2400_10()`` (its
-    README's example; signs all +1); limits: the IRB 2400 product specification, as issue 12
-    lists them."""
+    README's example; signs all +1); limits: the IRB 2400 product specification."""
 
     name: ClassVar[str] = "abb_irb2400"
 
@@ -374,7 +373,7 @@ class AbbIrb2400(OpwArm):
 class AbbIrb2600(OpwArm):
     """ABB IRB 2600-12/1.65. Geometry and offsets: ROS-Industrial's
     ``abb_irb2600_support`` opw parameters (as in rs-opw-kinematics' ``irb2600_12_165``);
-    limits: the IRB 2600 product specification, as issue 12 lists them."""
+    limits: the IRB 2600 product specification."""
 
     name: ClassVar[str] = "abb_irb2600"
 
@@ -397,7 +396,7 @@ class AbbIrb2600(OpwArm):
 class AbbIrb4600(OpwArm):
     """ABB IRB 4600-60/2.05. Geometry and offsets: ROS-Industrial's
     ``abb_irb4600_support`` opw parameters (as in rs-opw-kinematics' ``irb4600_60_205``);
-    limits: the IRB 4600 product specification, as issue 12 lists them."""
+    limits: the IRB 4600 product specification."""
 
     name: ClassVar[str] = "abb_irb4600"
 

@@ -104,7 +104,7 @@ def test_free_travel_out_is_the_cheapest_collision_free_continuation(env_id):
 
 
 def test_ids_with_models_trained_on_the_ladder_layout_keep_it():
-    # The session-2 results (docs/results/*.json) were trained on the ladder layout, and
+    # The single-seed results (docs/results/*.json) were trained on the ladder layout, and
     # tests/train/test_results.py plays those models on these ids.
     legacy = {"Cartesian-v1", "Cylindrical-v1", "Spherical-v1", "Anthropomorphic-v1",
               "Cylindrical4-v1", "ToolTransfer-v0", "DualRRPRPP-v0", "DualRRRPPP-v0",

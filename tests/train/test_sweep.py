@@ -41,7 +41,7 @@ def test_tiny_sweep_writes_run_directories_and_resumes(tmp_path):
         assert stamps == {seed: (d / "model.zip").stat().st_mtime_ns
                           for seed, d in models.items()}
         # Archived, the records alone aggregate to the same numbers, and a later sweep
-        # (another root: another machine or session) skips the archived trials.
+        # (another root: another machine or run) skips the archived trials.
         from train import publish
 
         records = aggregate.aggregate(tmp_path)

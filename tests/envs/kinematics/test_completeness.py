@@ -1,5 +1,5 @@
 """Completeness of the industrial arms' IK against a numerical multi-start solver inside
-the real joint limits (issue 12's acceptance).
+the real joint limits.
 
 For every named arm, the generic ``opw`` and ``ur`` with their defaults, and an ``opw``
 and a ``ur`` arm entered from a random data sheet, on two random poses and three

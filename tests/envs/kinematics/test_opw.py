@@ -299,7 +299,7 @@ def test_bad_parameters_are_value_errors_naming_the_parameter(name, params, mess
 
 
 def test_named_arms_carry_their_data_sheet_values():
-    # Issue 12's table, degrees as typed there.
+    # The data sheets' values, degrees as printed there.
     kuka = make_arm("kuka_kr6_r700")
     np.testing.assert_allclose(np.rad2deg(kuka.joint_limits),
                                [[-170, 170], [-190, 45], [-120, 156], [-185, 185], [-120, 120],

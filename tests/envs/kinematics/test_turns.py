@@ -16,7 +16,7 @@ from envs.kinematics import INDUSTRIAL_ARM_NAMES, SEED_ARM_NAMES, make_arm
 from envs.kinematics.arm import MAX_BRANCHES
 from tests.envs.kinematics.industrial import assert_round_trip, sample
 
-#: name -> (K, {joint: windows as (lower, upper) in degrees}) by hand from issue 12's tables.
+#: name -> (K, {joint: windows as (lower, upper) in degrees}) by hand from the data sheets.
 EXPECTED = {
     "opw": (8, {}),
     "ur": (8, {}),
@@ -30,7 +30,7 @@ EXPECTED = {
                          5: [(-400, -40), (-40, 320), (320, 400)]}),
     "abb_irb4600": (72, {3: [(-400, -40), (-40, 320), (320, 400)],
                          5: [(-400, -40), (-40, 320), (320, 400)]}),
-    # ±360° (720°: 2) on all joints but the elbow (±180°): 8 × 2⁵ = 256, as issue 12 says.
+    # ±360° (720°: 2) on all joints but the elbow (±180°): 8 × 2⁵ = 256.
     "ur5e": (256, {j: [(-360, 0), (0, 360)] for j in (0, 1, 3, 4, 5)}),
     "ur10e": (256, {j: [(-360, 0), (0, 360)] for j in (0, 1, 3, 4, 5)}),
 }
