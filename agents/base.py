@@ -13,8 +13,8 @@ from typing import Any, Protocol
 import gymnasium as gym
 import numpy as np
 
-from envs.ik_branch_env import IKBranchEnv
-from envs.tasks import Task
+from ikbranch_gym.envs.ik_branch_env import IKBranchEnv
+from ikbranch_gym.envs.tasks import Task
 
 
 class Policy(Protocol):

@@ -28,7 +28,7 @@ import gymnasium as gym
 import numpy as np
 from numba import njit
 
-from envs.moves import TaskMoves
+from ikbranch_gym.envs.moves import TaskMoves
 
 from .base import Baseline, first_within
 

@@ -15,7 +15,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-import envs  # noqa: F401  (registers the env ids)
+import ikbranch_gym.envs  # noqa: F401  (registers the env ids)
 
 from . import BASELINES, make_baseline
 from .base import Policy, unwrap

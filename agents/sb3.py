@@ -7,8 +7,12 @@ class; a MaskablePPO model is always given the env's action masks.
 
 from __future__ import annotations
 
+import contextlib
+import importlib
 import json
+import sys
 import zipfile
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -31,13 +35,42 @@ def model_class(path: str | Path) -> type[BaseAlgorithm]:
         raise ValueError(f"{path}: not an SB3 model zip ({error})") from error
     policy = data.get("policy_class", {})
     module = str(policy.get("__module__", ""))
-    # Our own policy classes (agents.branch_policy) say whether they mask.
+    # Our own policy classes (ikbranch_gym.agents.branch_policy) say whether they mask.
     masks = policy.get("action_masks")
     if "maskable" in module or masks is True:
         return MaskablePPO
     if (module.startswith("stable_baselines3") or masks is False) and "clip_range" in data:
         return PPO
     raise ValueError(f"{path}: a {module or 'unknown'} policy; expected PPO or MaskablePPO")
+
+
+#: Modules that models saved before the package was named ``ikbranch_gym`` name by their
+#: old import names (their pickled policy class and feature extractor).
+FORMER_NAMES = ("agents", "agents.branch_policy")
+
+
+@contextlib.contextmanager
+def former_module_names() -> Iterator[None]:
+    """While loading a model, :data:`FORMER_NAMES` resolve to this package's modules, so a
+    model that pickled ``agents.branch_policy.BranchPolicy`` loads; whatever those names
+    meant before (a user's own ``agents`` package, or nothing) is restored afterwards."""
+    saved = {name: sys.modules.get(name) for name in FORMER_NAMES}
+    for name in FORMER_NAMES:
+        sys.modules[name] = importlib.import_module(f"ikbranch_gym.{name}")
+    try:
+        yield
+    finally:
+        for name, module in saved.items():
+            if module is None:
+                del sys.modules[name]
+            else:
+                sys.modules[name] = module
+
+
+def load_model(algorithm: type[BaseAlgorithm], path: str | Path, **kwargs: Any) -> BaseAlgorithm:
+    """``algorithm.load(path, **kwargs)``, for models saved under either import name."""
+    with former_module_names():
+        return algorithm.load(path, **kwargs)
 
 
 class SB3Policy:
@@ -53,7 +86,7 @@ class SB3Policy:
     def load(cls, path: str | Path, env: gym.Env | None = None) -> SB3Policy:
         """Load ``path`` with the class it was saved from (CPU), checked against ``env``."""
         algorithm = model_class(path)
-        model = algorithm.load(path, device="cpu")
+        model = load_model(algorithm, path, device="cpu")
         if algorithm is MaskablePPO and not isinstance(model.policy, MaskableActorCriticPolicy):
             raise ValueError(f"{path}: recorded as MaskablePPO but its policy cannot mask")
         if env is not None and model.observation_space.shape != env.observation_space.shape:

@@ -49,17 +49,17 @@ import mujoco
 import numba
 import numpy as np
 
-import envs  # noqa: F401  (registers the env ids)
-from envs.kinematics import make_arm
-from envs.models import (
+import ikbranch_gym.envs  # noqa: F401  (registers the env ids)
+from ikbranch_gym.envs.kinematics import make_arm
+from ikbranch_gym.envs.models import (
     RECOMMENDED_BRANCHES,
     CollisionChecker,
     build_model,
     milling_cell_poses,
     native,
 )
-from envs.models.filter import COUNTERS
-from envs.models.filter.kernels import _exact_contacts
+from ikbranch_gym.envs.models.filter import COUNTERS
+from ikbranch_gym.envs.models.filter.kernels import _exact_contacts
 
 #: The env ids of the last table (``--ids``): their scenes after ``reset(seed=0)``.
 ENV_IDS = ("IKBranch/Anthropomorphic-v2", "IKBranch/KukaKR6-v0", "IKBranch/UR5e-v0",

@@ -24,8 +24,8 @@ import time
 import gymnasium as gym
 import numpy as np
 
-import envs  # noqa: F401
-from agents import DPOracle, ladder_q_tables
+import ikbranch_gym.envs  # noqa: F401
+from ikbranch_gym.agents import DPOracle, ladder_q_tables
 
 
 class Stopwatch:

@@ -30,9 +30,9 @@ import gymnasium as gym
 import numpy as np
 from env_steps import _loop, _runner
 
-import envs
-import envs.resets as resets
-from envs.models.filter import COUNTERS
+import ikbranch_gym.envs as envs
+import ikbranch_gym.envs.resets as resets
+from ikbranch_gym.envs.models.filter import COUNTERS
 
 #: Stage name -> seconds spent, filled by the timers below.
 SPENT: dict[str, float] = {}

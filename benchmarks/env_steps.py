@@ -35,7 +35,7 @@ import time
 import gymnasium as gym
 import numpy as np
 
-import envs
+import ikbranch_gym.envs as envs
 
 
 def _runner(env, seed: int):
@@ -97,7 +97,7 @@ def vector(env_id: str, num_envs: int, seconds: float, warmup: float,
            oracle: bool = False) -> float:
     """Steps/s (per sub-env) of the native vector env: random masked actions, or with
     ``oracle`` dp_oracle's plans (their planning time not counted)."""
-    from agents.dp import LazyLadder
+    from ikbranch_gym.agents.dp import LazyLadder
 
     venv = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point",
                         autoreset_mode="same_step")

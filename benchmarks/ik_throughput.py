@@ -26,8 +26,8 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from envs.kinematics import ARM_NAMES, make_arm  # noqa: E402
-from envs.kinematics.compiled import compiled_solve_poses  # noqa: E402
+from ikbranch_gym.envs.kinematics import ARM_NAMES, make_arm  # noqa: E402
+from ikbranch_gym.envs.kinematics.compiled import compiled_solve_poses  # noqa: E402
 
 
 def best_time(function, repeats: int) -> float:

@@ -2,7 +2,7 @@
 
     .venv/bin/python benchmarks/startup.py [--id IKBranch/Anthropomorphic-v1] [--runs 3]
 
-Each run is a fresh Python process: ``import envs``, ``gym.make(id)``, ``reset(seed=0)``
+Each run is a fresh Python process: ``import ikbranch_gym``, ``gym.make(id)``, ``reset(seed=0)``
 and one masked step, timed from just before ``gym.make``. *Warm*: numba's on-disk cache
 (``__pycache__`` beside the sources, filled by ``make``'s warm-up step) holds the compiled
 kernels. *Cold*: ``NUMBA_CACHE_DIR`` points at an empty folder, so every kernel compiles
@@ -21,7 +21,7 @@ CHILD = """
 import time
 import gymnasium as gym
 import numpy as np
-import envs
+import ikbranch_gym.envs as envs
 tick = time.perf_counter()
 env = gym.make({env_id!r})
 env.reset(seed=0)

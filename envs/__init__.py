@@ -1,6 +1,7 @@
 """ikbranch-gym: Gymnasium environments for choosing closed-form IK branches.
 
-``import envs`` registers every id in ``ENV_IDS``; ``gym.make(id)`` needs nothing else.
+``import ikbranch_gym`` (or this subpackage) registers every id in ``ENV_IDS``; then
+``gym.make(id)`` needs nothing else. ``gym.make("ikbranch_gym:" + id)`` imports it itself.
 """
 
 from __future__ import annotations
@@ -89,8 +90,9 @@ for _env_id, _kwargs in ENV_SPECS.items():
     if _env_id not in gym.registry:
         # gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point"): the
         # natively batched vector env (envs.vector_env).
-        gym.register(_env_id, entry_point="envs.ik_branch_env:IKBranchEnv",
-                     vector_entry_point="envs.vector_env:IKBranchVectorEnv", kwargs=_kwargs)
+        gym.register(_env_id, entry_point="ikbranch_gym.envs.ik_branch_env:IKBranchEnv",
+                     vector_entry_point="ikbranch_gym.envs.vector_env:IKBranchVectorEnv",
+                     kwargs=_kwargs)
 
 
 
@@ -100,8 +102,8 @@ def warm_up() -> None:
     observation assembly, in single and vector envs. ``make`` runs it
     once before parallel processes (test workers) start, so they load instead of compiling
     the same kernels at once."""
-    from envs.kinematics import compiled as kinematics
-    from envs.models import filter as collision
+    from ikbranch_gym.envs.kinematics import compiled as kinematics
+    from ikbranch_gym.envs.models import filter as collision
 
     kinematics.warm_up()
     collision.warm_up()

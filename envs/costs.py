@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from envs.kinematics import Arm
+from ikbranch_gym.envs.kinematics import Arm
 
 #: Default joint speed limits: rad/s for revolute joints, m/s for prismatic ones (typical
 #: of mid-size industrial arms' slower axes; override per joint with ``joint_speeds``).

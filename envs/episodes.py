@@ -23,10 +23,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from envs import stepping
-from envs.models.filter import CompiledFilter, FilterStack
-from envs.moves import REWARD_TERMS, MovePricer, TaskMoves
-from envs.observations import ObservationBuilder
+from ikbranch_gym.envs import stepping
+from ikbranch_gym.envs.models.filter import CompiledFilter, FilterStack
+from ikbranch_gym.envs.moves import REWARD_TERMS, MovePricer, TaskMoves
+from ikbranch_gym.envs.observations import ObservationBuilder
 
 #: Scene tokens of this process: each scene laid gets its own (``EpisodeBatch.set_scene``).
 _SCENE_TOKENS = itertools.count(1)

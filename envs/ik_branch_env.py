@@ -9,21 +9,21 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from envs.costs import TransitionCost
-from envs.episodes import EpisodeBatch, new_scene_token
-from envs.kinematics import ARM_NAMES, make_arm
-from envs.models import SCENES, CollisionChecker, build_arm_model
-from envs.models.scene_file import base_pose, load_scene_file
-from envs.models.scenes import CLUTTER_SLOTS, ClutterSlots, draw_clutter
-from envs.moves import MovePricer, TaskMoves
-from envs.observations import ObservationBuilder
-from envs.resets import begin_episodes
-from envs.seeds import TRAIN_SCENES
-from envs.task_frame import FramedArm, TaskFrame
-from envs.tasks import TASKS, Task
-from envs.tasks.file_task import FileTask
-from envs.tasks.waypoint_file import read_waypoints
-from envs.tools import Tool
+from ikbranch_gym.envs.costs import TransitionCost
+from ikbranch_gym.envs.episodes import EpisodeBatch, new_scene_token
+from ikbranch_gym.envs.kinematics import ARM_NAMES, make_arm
+from ikbranch_gym.envs.models import SCENES, CollisionChecker, build_arm_model
+from ikbranch_gym.envs.models.scene_file import base_pose, load_scene_file
+from ikbranch_gym.envs.models.scenes import CLUTTER_SLOTS, ClutterSlots, draw_clutter
+from ikbranch_gym.envs.moves import MovePricer, TaskMoves
+from ikbranch_gym.envs.observations import ObservationBuilder
+from ikbranch_gym.envs.resets import begin_episodes
+from ikbranch_gym.envs.seeds import TRAIN_SCENES
+from ikbranch_gym.envs.task_frame import FramedArm, TaskFrame
+from ikbranch_gym.envs.tasks import TASKS, Task
+from ikbranch_gym.envs.tasks.file_task import FileTask
+from ikbranch_gym.envs.tasks.waypoint_file import read_waypoints
+from ikbranch_gym.envs.tools import Tool
 
 #: ``scene_options`` placing the arm's base in the cell (m; unit quaternion or rpy, rad).
 BASE_KEYS = ("base_pos", "base_quat", "base_rpy")
@@ -535,7 +535,7 @@ class IKBranchEnv(gym.Env):
         if self.render_mode != "rgb_array":
             return None
         if self._renderer is None:
-            from envs.render import SceneRenderer
+            from ikbranch_gym.envs.render import SceneRenderer
 
             self._renderer = SceneRenderer(
                 self.model,

@@ -35,11 +35,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from envs.costs import TransitionCost
-from envs.jit import njit
-from envs.kinematics import Arm
-from envs.models import CollisionChecker
-from envs.tasks import Task
+from ikbranch_gym.envs.costs import TransitionCost
+from ikbranch_gym.envs.jit import njit
+from ikbranch_gym.envs.kinematics import Arm
+from ikbranch_gym.envs.models import CollisionChecker
+from ikbranch_gym.envs.tasks import Task
 
 #: Cache bounds (entries), see the module docstring.
 POSE_CACHE_SIZE = 50_000

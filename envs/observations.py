@@ -32,9 +32,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from envs.jit import njit
-from envs.kinematics import Arm
-from envs.moves import TEMPLATE_CACHE_BYTES, TEMPLATE_SIGHTINGS, TaskMoves
+from ikbranch_gym.envs.jit import njit
+from ikbranch_gym.envs.kinematics import Arm
+from ikbranch_gym.envs.moves import TEMPLATE_CACHE_BYTES, TEMPLATE_SIGHTINGS, TaskMoves
 
 #: The observation layouts (module docstring).
 OBSERVATIONS = ("compact", "ladder")

@@ -15,13 +15,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from envs.jit import njit
-from envs.kinematics import Arm
-from envs.models.filter import CompiledFilter
-from envs.models.filter.kernels import bound_configurations, bound_paths, path_steps
-from envs.tasks import Task
-from envs.tasks.base import SAMPLE_ROUNDS
-from envs.tasks.random_reachable import MAX_DRAWS, REDRAWS_BEFORE_BACKTRACK
+from ikbranch_gym.envs.jit import njit
+from ikbranch_gym.envs.kinematics import Arm
+from ikbranch_gym.envs.models.filter import CompiledFilter
+from ikbranch_gym.envs.models.filter.kernels import bound_configurations, bound_paths, path_steps
+from ikbranch_gym.envs.tasks import Task
+from ikbranch_gym.envs.tasks.base import SAMPLE_ROUNDS
+from ikbranch_gym.envs.tasks.random_reachable import MAX_DRAWS, REDRAWS_BEFORE_BACKTRACK
 
 #: :func:`_chain` status codes.
 DONE, TOO_FEW_FREE, TOO_MANY_DRAWS = 0, 1, 2

@@ -29,9 +29,9 @@ import imageio.v3 as iio
 import mujoco
 import numpy as np
 
-from envs.kinematics import make_arm
-from envs.models import SCENES, build_model, milling_cell_poses
-from envs.models.builders import COLLISION_GROUP, VISUAL_GROUP
+from ikbranch_gym.envs.kinematics import make_arm
+from ikbranch_gym.envs.models import SCENES, build_model, milling_cell_poses
+from ikbranch_gym.envs.models.builders import COLLISION_GROUP, VISUAL_GROUP
 
 
 def framing_camera(

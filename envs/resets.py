@@ -25,15 +25,15 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from envs.models.filter import CompiledFilter, FilterStack
-from envs.models.filter.kernels import BY_MUJOCO
-from envs.moves import TaskMoves, endpoint_collision
-from envs.random_chain import random_chain_configurations
-from envs.tasks import Task
-from envs.tasks.random_reachable import random_reachable
+from ikbranch_gym.envs.models.filter import CompiledFilter, FilterStack
+from ikbranch_gym.envs.models.filter.kernels import BY_MUJOCO
+from ikbranch_gym.envs.moves import TaskMoves, endpoint_collision
+from ikbranch_gym.envs.random_chain import random_chain_configurations
+from ikbranch_gym.envs.tasks import Task
+from ikbranch_gym.envs.tasks.random_reachable import random_reachable
 
 if TYPE_CHECKING:
-    from envs.ik_branch_env import IKBranchEnv
+    from ikbranch_gym.envs.ik_branch_env import IKBranchEnv
 
 
 def begin_episodes(envs: Sequence[IKBranchEnv], seeds: Sequence[int | None],

@@ -28,9 +28,9 @@ import numpy as np
 from numba.core import types
 from numba.experimental import structref
 
-from envs.jit import njit
-from envs.models.filter.kernels import bound_paths, path_steps
-from envs.moves import _next_targets, _onward_travel, _price, _take_or_try_next
+from ikbranch_gym.envs.jit import njit
+from ikbranch_gym.envs.models.filter.kernels import bound_paths, path_steps
+from ikbranch_gym.envs.moves import _next_targets, _onward_travel, _price, _take_or_try_next
 
 #: The flags the filter's kernels take, as run-time booleans: every caller then shares one
 #: compiled version of them (a literal ``False`` would be typed, and compiled, apart).

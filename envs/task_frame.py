@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from envs.kinematics import Arm
+from ikbranch_gym.envs.kinematics import Arm
 
 
 def _invert(pose: np.ndarray) -> np.ndarray:

@@ -9,10 +9,10 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from envs.episodes import EpisodeBatch, Steps
-from envs.ik_branch_env import IKBranchEnv
-from envs.models.filter import FilterStack
-from envs.resets import begin_episodes
+from ikbranch_gym.envs.episodes import EpisodeBatch, Steps
+from ikbranch_gym.envs.ik_branch_env import IKBranchEnv
+from ikbranch_gym.envs.models.filter import FilterStack
+from ikbranch_gym.envs.resets import begin_episodes
 
 
 class IKBranchVectorEnv(VectorEnv):

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from envs.kinematics import make_arm
-from envs.kinematics.paper_example import (
+from ikbranch_gym.envs.kinematics import make_arm
+from ikbranch_gym.envs.kinematics.paper_example import (
     PRINTED_MIN_TRAVEL_DEG,
     PRINTED_TABLE_DEG,
     example_poses,

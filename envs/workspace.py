@@ -30,8 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from envs.kinematics import ARM_NAMES, Arm, make_arm
-from envs.kinematics.arm import REVOLUTE
+from ikbranch_gym.envs.kinematics import ARM_NAMES, Arm, make_arm
+from ikbranch_gym.envs.kinematics.arm import REVOLUTE
 
 #: Default voxel size: about this many samples per cube of the sampled bounding box. Fewer
 #: leaves holes in sparsely sampled regions, more makes the cubes (and the error) coarse.

@@ -14,8 +14,8 @@ import json
 import sys
 from pathlib import Path
 
-from train.hyperparams import ALGORITHMS
-from train.training import VEC_ENVS, RunConfig, train
+from ikbranch_gym.train.hyperparams import ALGORITHMS
+from ikbranch_gym.train.training import VEC_ENVS, RunConfig, train
 
 
 def _json_object(text: str) -> dict:
@@ -55,7 +55,7 @@ def parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     args = parser().parse_args(argv)
-    import envs
+    import ikbranch_gym.envs as envs
 
     if args.env not in envs.ENV_IDS:
         parser().error(f"unknown env id {args.env!r}; registered: {', '.join(envs.ENV_IDS)}")

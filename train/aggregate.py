@@ -34,8 +34,8 @@ from typing import Any
 
 import numpy as np
 
-from agents import DPOracle, PaperRule, RandomBranch, RecedingDP
-from train.sweep import ROOT, env_name
+from ikbranch_gym.agents import DPOracle, PaperRule, RandomBranch, RecedingDP
+from ikbranch_gym.train.sweep import ROOT, env_name
 
 #: Bootstrap resamples for every interval.
 REPS = 2000
@@ -212,8 +212,8 @@ def main(argv: list[str] | None = None) -> int:
                              "results table (train/publish.py)")
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
     if args.publish:
-        from train.publish import SWEEP_RESULTS, archive, carry_over
-        from train.sweep import ARCHIVE
+        from ikbranch_gym.train.publish import SWEEP_RESULTS, archive, carry_over
+        from ikbranch_gym.train.sweep import ARCHIVE
 
         archive(args.root)
         published = SWEEP_RESULTS / "aggregate.json"
@@ -232,8 +232,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.out:
         args.out.write_text(json.dumps(records, indent=1) + "\n")
     if args.publish:
-        from train.publish import publish, write_readme
-        from train.results import write_results
+        from ikbranch_gym.train.publish import publish, write_readme
+        from ikbranch_gym.train.results import write_results
 
         written = publish(args.root, records)
         print(f"published {len(written)} files; {write_results()}; {write_readme(records)}")

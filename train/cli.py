@@ -22,17 +22,24 @@ from collections.abc import Sequence
 
 #: subcommand -> (module whose ``main(argv)`` runs it, one-line description).
 COMMANDS: dict[str, tuple[str, str]] = {
-    "plan": ("train.plan", "choose an IK branch per waypoint of a waypoint file (a plan CSV)"),
-    "train": ("train.__main__", "train PPO or MaskablePPO on an env id (python -m train)"),
-    "evaluate": ("train.evaluate", "compare policies on the same tasks (python -m "
-                                   "train.evaluate)"),
-    "demo": ("train.demo", "the worked example, training and comparison (python -m "
-                           "train.demo)"),
-    "sweep": ("train.sweep", "env x algorithm x seed trials on Ray Tune (python -m "
-                             "train.sweep)"),
-    "aggregate": ("train.aggregate", "interval estimates over a sweep (python -m "
-                                     "train.aggregate)"),
+    "plan": ("ikbranch_gym.train.plan",
+             "choose an IK branch per waypoint of a waypoint file (a plan CSV)"),
+    "train": ("ikbranch_gym.train.__main__",
+              "train PPO or MaskablePPO on an env id (python -m train)"),
+    "evaluate": ("ikbranch_gym.train.evaluate",
+                 "compare policies on the same tasks (python -m train.evaluate)"),
+    "demo": ("ikbranch_gym.train.demo",
+             "the worked example, training and comparison (python -m train.demo)"),
+    "sweep": ("ikbranch_gym.train.sweep",
+              "env x algorithm x seed trials on Ray Tune (python -m train.sweep)"),
+    "aggregate": ("ikbranch_gym.train.aggregate",
+                  "interval estimates over a sweep (python -m train.aggregate)"),
 }
+
+
+#: subcommand -> the optional dependencies (``pyproject.toml`` extra) it needs.
+EXTRAS = {"plan": "plan", "train": "train", "evaluate": "train", "demo": "train",
+          "sweep": "sweep", "aggregate": "sweep"}
 
 
 def usage() -> str:
@@ -76,8 +83,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"ikbranch: unknown command {command!r}{hint}; choose one of "
               f"{', '.join(COMMANDS)} ('ikbranch --help' lists them)", file=sys.stderr)
         return 2
-    module = importlib.import_module(COMMANDS[command][0])
-    return _exit_status(module.main(rest))
+    try:
+        return _exit_status(importlib.import_module(COMMANDS[command][0]).main(rest))
+    except ModuleNotFoundError as error:
+        # An optional dependency the command needs (anything but this package itself).
+        if error.name is None or error.name.partition(".")[0] == "ikbranch_gym":
+            raise
+        print(f"ikbranch {command} needs {error.name!r}, which is not installed: "
+              f"pip install 'ikbranch-gym[{EXTRAS[command]}]'", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from envs.seeds import DEMO_SEED
+from ikbranch_gym.envs.seeds import DEMO_SEED
 
 ENV_ID = "IKBranch/ToolTransfer-v1"
 #: The baselines of the README's demo table, a subset of ``agents.BASELINES`` chosen for
@@ -63,8 +63,8 @@ def episode_gif(model_path: Path, seed: int, out: Path) -> None:
     """Play the learned policy on one task and animate every move in joint space."""
     import gymnasium as gym
 
-    from agents.sb3 import SB3Policy
-    from envs.render import SceneRenderer, linear_path, save_gif
+    from ikbranch_gym.agents.sb3 import SB3Policy
+    from ikbranch_gym.envs.render import SceneRenderer, linear_path, save_gif
 
     env = gym.make(ENV_ID)
     policy = SB3Policy.load(model_path, env)
@@ -94,14 +94,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="training seed")
     args = parser.parse_args(argv)
 
-    from envs import worked_example
+    from ikbranch_gym.envs import worked_example
 
     print("=" * 30, "Klyuiko (1986): the worked example", "=" * 30)
     worked_example.main()
 
-    from agents.evaluation import evaluate
-    from train.evaluate import plot, table
-    from train.training import RunConfig, train
+    from ikbranch_gym.agents.evaluation import evaluate
+    from ikbranch_gym.train.evaluate import plot, table
+    from ikbranch_gym.train.training import RunConfig, train
 
     model = args.run_dir / "model.zip"
     print("\n" + "=" * 30, f"MaskablePPO on {ENV_ID}", "=" * 30)

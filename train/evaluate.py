@@ -20,8 +20,8 @@ import json
 from pathlib import Path
 from typing import Any
 
-from agents.evaluation import evaluate
-from envs.seeds import TEST_SEED, held_out
+from ikbranch_gym.agents.evaluation import evaluate
+from ikbranch_gym.envs.seeds import TEST_SEED, held_out
 
 COLUMNS = (
     ("policy", "{}"),

@@ -9,13 +9,15 @@ key ``_anchors`` only carries YAML anchors that entries merge in by name.
 from __future__ import annotations
 
 import importlib
+import importlib.resources
 from pathlib import Path
 from typing import Any
 
 import yaml
 
-CONFIG_DIR = Path(__file__).resolve().parent.parent / "configs"
-CONFIG = CONFIG_DIR / "hyperparams.yml"
+#: The hyper-parameters that ship with the package (``configs/`` of a checkout, package
+#: data of an installed wheel).
+CONFIG = Path(str(importlib.resources.files("ikbranch_gym.configs") / "hyperparams.yml"))
 #: The algorithms: name -> "module:class" (imported only when a run needs it).
 ALGORITHMS = {"ppo": "stable_baselines3:PPO", "maskable_ppo": "sb3_contrib:MaskablePPO"}
 #: Keys of an entry that are not constructor arguments of the algorithm.
@@ -39,7 +41,7 @@ def algorithm_class(algo: str) -> type:
 def load_config(path: str | Path = CONFIG) -> dict[str, dict[str, Any]]:
     """The whole file: env id -> entry. ``ValueError`` for a key that is no registered id,
     or an override block for an unknown algorithm."""
-    import envs
+    import ikbranch_gym.envs as envs
 
     with open(path) as handle:
         config = yaml.safe_load(handle) or {}

@@ -49,8 +49,8 @@ from typing import Any
 
 import numpy as np
 
-from agents import BASELINES
-from agents.evaluation import ORACLE, parse_spec
+from ikbranch_gym.agents import BASELINES
+from ikbranch_gym.agents.evaluation import ORACLE, parse_spec
 
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_UNSAFE = 0, 1, 2, 3
 #: The planner names ``--planner`` takes besides ``MODEL.zip``: the baselines
@@ -108,7 +108,7 @@ class PlanRequest:
 
 def make_env(request: PlanRequest):
     """A fresh env of the request (``ValueError`` for any bad input it finds)."""
-    from envs.ik_branch_env import IKBranchEnv
+    from ikbranch_gym.envs.ik_branch_env import IKBranchEnv
 
     return IKBranchEnv(**request.make_kwargs())
 
@@ -272,8 +272,8 @@ def plan(request: PlanRequest) -> Plan:
     after an install would otherwise report that as decision time. ``ValueError`` (a bad
     file, an unreachable row, an unknown planner, a model that does not fit the env, …)
     is bad input."""
-    from agents.evaluation import build_policy
-    from envs.tasks.waypoint_file import read_waypoints
+    from ikbranch_gym.agents.evaluation import build_policy
+    from ikbranch_gym.envs.tasks.waypoint_file import read_waypoints
 
     first = make_env(request)  # fails early on bad input, before any planner is built
     specs = [ORACLE, *(spec for spec in request.planners if spec != ORACLE)]
@@ -561,7 +561,7 @@ def render_frames(plan: Plan, frames: Sequence[Frame], width: int = 480,
                   height: int = 360) -> list[np.ndarray]:
     """Rendered, annotated RGB frames; the camera frames the arm over every pose it sweeps
     (its own geoms and the tool, not the whole cell)."""
-    from envs.render import SceneRenderer, arm_geoms
+    from ikbranch_gym.envs.render import SceneRenderer, arm_geoms
 
     samples = [frame.q for frame in frames]
     with SceneRenderer(plan.model, width=width, height=height, frame_qs=samples,
@@ -691,7 +691,7 @@ def parse_start(text: str, degrees: bool, arm) -> np.ndarray | None:
     if degrees:
         q = np.array([math.radians(v) if kind != "prismatic" else v / 1000.0
                       for v, kind in zip(values, arm.joint_types, strict=True)])
-    from envs.kinematics.arm import LIMIT_TOL
+    from ikbranch_gym.envs.kinematics.arm import LIMIT_TOL
 
     outside = []
     for name, kind, value, (lower, upper) in zip(arm.joint_names, arm.joint_types, q,
@@ -715,7 +715,7 @@ def _scene_options(options: dict[str, Any] | None, scene: Path | None) -> dict |
         return None
     if scene is None:
         raise PlanInputError("--scene-options need --scene (a scene file)")
-    from envs.ik_branch_env import SCENE_OPTIONS
+    from ikbranch_gym.envs.ik_branch_env import SCENE_OPTIONS
 
     unknown = sorted(set(options) - set(SCENE_OPTIONS["file"]))
     if unknown:
@@ -753,7 +753,7 @@ def _planner(spec: str) -> str:
 
 def request_from_args(args: argparse.Namespace) -> PlanRequest:
     """Check the command line (``PlanInputError`` naming the option) into a request."""
-    from envs.kinematics import make_arm
+    from ikbranch_gym.envs.kinematics import make_arm
 
     arm_params = _json_object(args.arm_params, "--arm-params")
     try:
@@ -768,7 +768,7 @@ def request_from_args(args: argparse.Namespace) -> PlanRequest:
     scene_options = _scene_options(_json_object(args.scene_options, "--scene-options"), scene)
     tool, tool_file = parse_tool(args.tool)
     if tool is not None:
-        from envs.tools import Tool
+        from ikbranch_gym.envs.tools import Tool
 
         try:
             Tool.from_spec(tool)
@@ -783,7 +783,7 @@ def request_from_args(args: argparse.Namespace) -> PlanRequest:
     env_kwargs = _json_object(args.env_kwargs, "--env-kwargs") or {}
     import inspect
 
-    from envs.ik_branch_env import IKBranchEnv
+    from ikbranch_gym.envs.ik_branch_env import IKBranchEnv
 
     known = set(inspect.signature(IKBranchEnv.__init__).parameters) - {"self"}
     unknown = sorted(set(env_kwargs) - known)

@@ -29,8 +29,8 @@ import shutil
 from pathlib import Path
 from typing import Any
 
-from train.aggregate import RIVALS
-from train.sweep import ARCHIVE, env_name, run_dir
+from ikbranch_gym.train.aggregate import RIVALS
+from ikbranch_gym.train.sweep import ARCHIVE, env_name, run_dir
 
 ROOT = Path(__file__).resolve().parent.parent
 SWEEP_RESULTS = ROOT / "docs" / "results" / "sweep"

@@ -18,11 +18,11 @@ import sys
 import time
 from pathlib import Path
 
-from agents import BASELINES
-from agents.evaluation import ORACLE, evaluate
-from envs.seeds import TEST_SEED
-from train.hyperparams import ALGORITHMS
-from train.training import RunConfig, train
+from ikbranch_gym.agents import BASELINES
+from ikbranch_gym.agents.evaluation import ORACLE, evaluate
+from ikbranch_gym.envs.seeds import TEST_SEED
+from ikbranch_gym.train.hyperparams import ALGORITHMS
+from ikbranch_gym.train.training import RunConfig, train
 
 ROOT = Path(__file__).resolve().parent.parent
 MODELS, RESULTS = ROOT / "models", ROOT / "docs" / "results"
@@ -47,7 +47,7 @@ def model_path(env_id: str, algo: str) -> Path:
 
 def produce(env_id: str, algos: tuple[str, ...], seed: int = 0) -> dict:
     """Train (where no committed model exists) and evaluate; returns the stored record."""
-    from train.hyperparams import hyperparams_for
+    from ikbranch_gym.train.hyperparams import hyperparams_for
 
     record = {"env": env_id, "eval_seed": TEST_SEED, "episodes": EVAL_EPISODES, "training": {}}
     stored = RESULTS / f"{env_name(env_id)}.json"
@@ -93,7 +93,7 @@ def produce(env_id: str, algos: tuple[str, ...], seed: int = 0) -> dict:
 def render() -> str:
     """docs/results.md: the published sweep (``train/publish.py``) first, then every
     single-seed record of the earlier ids."""
-    from train.publish import render_sweep
+    from ikbranch_gym.train.publish import render_sweep
 
     lines = [
         "# Results",
@@ -144,7 +144,7 @@ def write_results() -> Path:
 
 
 def main(argv: list[str] | None = None) -> int:
-    import envs
+    import ikbranch_gym.envs as envs
 
     parser = argparse.ArgumentParser(prog="python -m train.results", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -153,7 +153,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--render-only", action="store_true")
     args = parser.parse_args(argv)
     if not args.render_only:
-        from train.evaluate import plot
+        from ikbranch_gym.train.evaluate import plot
 
         # By default the ids already published here (the sweep publishes the newer ones).
         published = [json.loads(p.read_text())["env"] for p in sorted(RESULTS.glob("*.json"))]

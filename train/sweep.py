@@ -32,7 +32,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from train.hyperparams import ALGORITHMS
+from ikbranch_gym.train.hyperparams import ALGORITHMS
 
 ROOT = Path(__file__).resolve().parent.parent
 #: Finished trials' records, committed (``train.publish.archive``): a root without models.
@@ -82,12 +82,12 @@ def _write_json(path: Path, record: dict) -> None:
 
 def run_trial(spec: dict[str, Any]) -> dict[str, Any]:
     """One trial, without Ray: train (or resume, or skip) and evaluate; returns the record."""
-    from agents import BASELINES
-    from agents.evaluation import evaluate
-    from envs.seeds import TEST_SEED, held_out
-    from train.callbacks import LATEST
-    from train.hyperparams import hyperparams_for
-    from train.training import RunConfig, train
+    from ikbranch_gym.agents import BASELINES
+    from ikbranch_gym.agents.evaluation import evaluate
+    from ikbranch_gym.envs.seeds import TEST_SEED, held_out
+    from ikbranch_gym.train.callbacks import LATEST
+    from ikbranch_gym.train.hyperparams import hyperparams_for
+    from ikbranch_gym.train.training import RunConfig, train
 
     root, env_id, algo = Path(spec["root"]), spec["env_id"], spec["algo"]
     episodes, env_kwargs = spec["episodes"], held_out(env_id, spec.get("env_kwargs"))
@@ -218,7 +218,7 @@ def parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(sys.argv[1:] if argv is None else argv)
-    import envs
+    import ikbranch_gym.envs as envs
 
     unknown = [env_id for env_id in args.envs if env_id not in envs.ENV_IDS]
     if unknown:

@@ -31,16 +31,22 @@ from stable_baselines3.common.callbacks import CallbackList
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecNormalize
 
-from envs.seeds import VALIDATION_OFFSET, held_out
-from train.callbacks import (
+from ikbranch_gym.agents.sb3 import load_model
+from ikbranch_gym.envs.seeds import VALIDATION_OFFSET, held_out
+from ikbranch_gym.train.callbacks import (
     LATEST,
     REWARD_STATS,
     AtomicCheckpointCallback,
     HeldOutEvalCallback,
     atomic_save,
 )
-from train.hyperparams import RUN_KEYS, algorithm_class, check_algorithm, hyperparams_for
-from train.vec_env import make_native_vec_env
+from ikbranch_gym.train.hyperparams import (
+    RUN_KEYS,
+    algorithm_class,
+    check_algorithm,
+    hyperparams_for,
+)
+from ikbranch_gym.train.vec_env import make_native_vec_env
 
 VERSIONED = ("ikbranch-gym", "gymnasium", "mujoco", "numpy", "torch", "stable-baselines3",
              "sb3-contrib")
@@ -48,7 +54,7 @@ VERSIONED = ("ikbranch-gym", "gymnasium", "mujoco", "numpy", "torch", "stable-ba
 
 def make_env(env_id: str, env_kwargs: dict[str, Any]) -> gym.Env:
     """A top-level factory (picklable for subprocesses); importing ``envs`` registers ids."""
-    import envs  # noqa: F401
+    import ikbranch_gym.envs  # noqa: F401
 
     return gym.make(env_id, **env_kwargs)
 
@@ -103,7 +109,11 @@ def vec_envs(kind: str, env_id: str, env_kwargs: dict[str, Any], n_envs: int,
 def branch_policy(algo: str, factory, overrides: dict[str, Any]) -> tuple[type, dict[str, Any]]:
     """``policy: BranchPolicy`` in a config: the class for ``algo`` and its policy_kwargs,
     built from the env's observation layout (``agents.branch_policy``)."""
-    from agents.branch_policy import BranchPolicy, MaskableBranchPolicy, branch_policy_kwargs
+    from ikbranch_gym.agents.branch_policy import (
+        BranchPolicy,
+        MaskableBranchPolicy,
+        branch_policy_kwargs,
+    )
 
     probe = factory()
     try:
@@ -177,7 +187,8 @@ def train(run: RunConfig, argv: list[str] | None = None):
     algorithm = algorithm_class(run.algo)
     try:
         if run.resume:
-            model = algorithm.load(latest, env=train_env, tensorboard_log=str(run_dir / "tb"))
+            model = load_model(algorithm, latest, env=train_env,
+                               tensorboard_log=str(run_dir / "tb"))
         else:
             policy = params["policy"]
             if policy == "BranchPolicy":

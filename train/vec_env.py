@@ -22,7 +22,7 @@ from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvStepReturn
 
-from envs.vector_env import IKBranchVectorEnv
+from ikbranch_gym.envs.vector_env import IKBranchVectorEnv
 
 
 def make_native_vec_env(env_id: str, n_envs: int, env_kwargs: dict[str, Any] | None = None,
@@ -30,7 +30,7 @@ def make_native_vec_env(env_id: str, n_envs: int, env_kwargs: dict[str, Any] | N
     """``n_envs`` sub-envs of ``env_id`` (with ``env_kwargs``) as an SB3 ``VecEnv``;
     ``seed``: sub-env i is seeded with ``seed + i`` at the first reset, as SB3's
     ``make_vec_env`` seeds its envs."""
-    import envs  # noqa: F401  (registers the ids)
+    import ikbranch_gym.envs  # noqa: F401  (registers the ids)
 
     venv = gym.make_vec(env_id, num_envs=n_envs, vectorization_mode="vector_entry_point",
                         autoreset_mode=AutoresetMode.SAME_STEP, **(env_kwargs or {}))

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from envs.kinematics import Arm
+from ikbranch_gym.envs.kinematics import Arm
 
 #: Geom groups: MuJoCo's renderer shows groups 0–2 by default, so collision geoms (3) stay
 #: hidden unless asked for.

@@ -23,7 +23,7 @@ import itertools
 import mujoco
 import numpy as np
 
-from envs.kinematics import Arm
+from ikbranch_gym.envs.kinematics import Arm
 
 from .builders import (
     DARK,

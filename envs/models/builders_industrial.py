@@ -26,7 +26,7 @@ import itertools
 
 import numpy as np
 
-from envs.kinematics import Arm
+from ikbranch_gym.envs.kinematics import Arm
 
 from .builders import (
     DARK,

@@ -19,7 +19,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from envs.kinematics import Arm
+from ikbranch_gym.envs.kinematics import Arm
 
 from .builders import (
     DARK,

@@ -7,8 +7,8 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from envs.kinematics import Arm, make_arm
-from envs.tools import Tool, ToolPart
+from ikbranch_gym.envs.kinematics import Arm, make_arm
+from ikbranch_gym.envs.tools import Tool, ToolPart
 
 from .builders import COLLISION_BIT, TREE_BUILDERS, ArmTree, exclude
 from .scenes import SCENES, default_tool

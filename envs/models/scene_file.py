@@ -48,7 +48,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from envs.kinematics import Arm
+from ikbranch_gym.envs.kinematics import Arm
 
 from .builders import (
     COLLISION_BIT,

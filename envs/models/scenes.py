@@ -28,9 +28,13 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from envs.jit import njit
-from envs.kinematics import Arm
-from envs.kinematics.paper_example import RACK_SLOT_OFFSETS_Y, TOOL_ABC_MM, example_poses
+from ikbranch_gym.envs.jit import njit
+from ikbranch_gym.envs.kinematics import Arm
+from ikbranch_gym.envs.kinematics.paper_example import (
+    RACK_SLOT_OFFSETS_Y,
+    TOOL_ABC_MM,
+    example_poses,
+)
 
 from .builders import STEEL, ArmTree, add_part, add_static_body, compile_spec
 from .collision import DEFAULT_RESOLUTION, CollisionChecker

@@ -8,7 +8,7 @@ from typing import Protocol, cast
 
 import numpy as np
 
-from envs.kinematics import Arm
+from ikbranch_gym.envs.kinematics import Arm
 
 
 class FreePredicate(Protocol):

@@ -14,7 +14,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from envs.kinematics import Arm, frenet_pose
+from ikbranch_gym.envs.kinematics import Arm, frenet_pose
 
 from .base import (
     FreePredicate,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from envs.kinematics import Arm
+from ikbranch_gym.envs.kinematics import Arm
 
 from .base import (
     FreePredicate,

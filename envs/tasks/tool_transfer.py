@@ -6,8 +6,8 @@ from functools import cache, lru_cache
 
 import numpy as np
 
-from envs.kinematics import Arm
-from envs.kinematics.paper_example import example_poses, rack_slot_poses
+from ikbranch_gym.envs.kinematics import Arm
+from ikbranch_gym.envs.kinematics.paper_example import example_poses, rack_slot_poses
 
 from .base import FreePredicate, PathPredicate, Task, require_pose_arm, task_generator
 

@@ -40,8 +40,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike
 
-from envs.kinematics import pose_from_points
-from envs.kinematics.rotations import ORTHONORMAL_TOL
+from ikbranch_gym.envs.kinematics import pose_from_points
+from ikbranch_gym.envs.kinematics.rotations import ORTHONORMAL_TOL
 
 #: Largest accepted |‖q‖ − 1| of a quaternion. Within it, the row's rotation is the one q
 #: represents (the rotation of q/‖q‖: the rounding of a printed unit quaternion, 6+

@@ -9,15 +9,15 @@ import torch
 from sb3_contrib import MaskablePPO
 from stable_baselines3 import PPO
 
-import envs  # noqa: F401  (registers the ids)
-from agents.branch_policy import (
+import ikbranch_gym.envs  # noqa: F401  (registers the ids)
+from ikbranch_gym.agents.branch_policy import (
     BranchFeatures,
     BranchPolicy,
     MaskableBranchPolicy,
     branch_policy_kwargs,
 )
-from agents.evaluation import run_episode
-from agents.sb3 import SB3Policy, model_class
+from ikbranch_gym.agents.evaluation import run_episode
+from ikbranch_gym.agents.sb3 import SB3Policy, model_class
 
 
 def _permuted(obs: np.ndarray, layout: dict, k: int, dof: int, order: np.ndarray) -> np.ndarray:

@@ -8,8 +8,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import envs
-from agents import DPOracle, RecedingDP, ladder_q_tables, make_baseline
+import ikbranch_gym.envs as envs
+from ikbranch_gym.agents import DPOracle, RecedingDP, ladder_q_tables, make_baseline
 from tests.agents.brute_force import brute_force
 
 #: (env id, kwargs, seeds): arms with 1–8 branches, invalid branches (rod), terminal
@@ -144,7 +144,7 @@ def test_oracle_finishes_every_tool_change_without_a_collision(env_id):
 def test_lazy_backward_pass_equals_ladder_q_tables():
     # The compiled backward pass over stacked edges is ladder_q_tables, bit for bit, with
     # missing rows, terminal edges and masked branches mixed in.
-    from agents.dp import _backward
+    from ikbranch_gym.agents.dp import _backward
 
     rng = np.random.default_rng(3)
     w, k = 6, 5
@@ -185,7 +185,7 @@ def test_lazy_oracle_checks_few_edges_and_replans_off_its_path():
 
 
 def test_values_equal_to_rounding_tie_towards_the_lower_branch():
-    from agents.dp import best_branch
+    from ikbranch_gym.agents.dp import best_branch
 
     mask = np.ones(4, dtype=bool)
     value = -0.6575120052142036

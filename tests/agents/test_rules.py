@@ -6,9 +6,9 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import envs  # noqa: F401
-from agents import BASELINES, FixedBranch, make_baseline
-from envs.kinematics.paper_example import PRINTED_MIN_TRAVEL_DEG
+import ikbranch_gym.envs  # noqa: F401
+from ikbranch_gym.agents import BASELINES, FixedBranch, make_baseline
+from ikbranch_gym.envs.kinematics.paper_example import PRINTED_MIN_TRAVEL_DEG
 
 PAPER_PAIRS = ([0, 0], [1, 1])  # 1.1 -> 2.1 or 1.2 -> 2.2
 

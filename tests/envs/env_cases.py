@@ -6,7 +6,7 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 
-import envs
+import ikbranch_gym.envs as envs
 
 #: Small episodes keep a test of every id fast; the
 #: checks that depend on defaults build their envs without these.

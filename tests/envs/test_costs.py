@@ -7,8 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from envs.costs import DEFAULT_PRISMATIC_SPEED, DEFAULT_REVOLUTE_SPEED, TransitionCost
-from envs.kinematics import make_arm
+from ikbranch_gym.envs.costs import DEFAULT_PRISMATIC_SPEED, DEFAULT_REVOLUTE_SPEED, TransitionCost
+from ikbranch_gym.envs.kinematics import make_arm
 
 
 def test_travel_is_the_papers_sum_of_joint_moves():

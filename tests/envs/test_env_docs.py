@@ -11,8 +11,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import envs
-from envs.ik_branch_env import IKBranchEnv
+import ikbranch_gym.envs as envs
+from ikbranch_gym.envs.ik_branch_env import IKBranchEnv
 
 SECTIONS = ("Description", "Action space", "Observation space", "Rewards", "Starting state",
             "Episode end", "Arguments", "Version history")
@@ -103,7 +103,7 @@ def test_every_required_id_is_registered_and_makes_what_it_says():
     assert set(envs.ENV_IDS) == set(REQUIRED_IDS)
     for env_id, (arm, scene, task, observation, per_episode) in REQUIRED_IDS.items():
         spec = gym.spec(env_id)
-        assert spec.entry_point == "envs.ik_branch_env:IKBranchEnv", env_id
+        assert spec.entry_point == "ikbranch_gym.envs.ik_branch_env:IKBranchEnv", env_id
         made = {**DEFAULTS, **spec.kwargs}
         assert (made["arm"], made["scene"], made["task"], made["observation"]) == (
             arm, scene, task, observation), env_id

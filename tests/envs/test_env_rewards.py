@@ -9,7 +9,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from envs.kinematics.paper_example import PRINTED_MIN_TRAVEL_DEG
+from ikbranch_gym.envs.kinematics.paper_example import PRINTED_MIN_TRAVEL_DEG
 from tests.envs.env_cases import IDS, INFO_TERMS, make, rollout
 
 

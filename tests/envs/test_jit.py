@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numba
 
-import envs
-from envs import jit
+import ikbranch_gym.envs as envs
+from ikbranch_gym.envs import jit
 
 ROOT = Path(envs.__file__).resolve().parent
 
@@ -43,7 +43,7 @@ def test_the_cache_directory_is_named_by_the_sources(tmp_path, monkeypatch):
 
 
 def test_kernels_are_cached_in_that_directory():
-    from envs.models.filter import kernels
+    from ikbranch_gym.envs.models.filter import kernels
 
     location = Path(kernels.check_paths._cache._cache_path).resolve()
     assert Path(jit.cache_directory()).resolve() in location.parents

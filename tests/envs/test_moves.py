@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from envs.moves import REWARD_TERMS, TaskMoves
+from ikbranch_gym.envs.moves import REWARD_TERMS, TaskMoves
 from tests.envs.env_cases import IDS, make
 
 
@@ -39,7 +39,7 @@ def test_stacked_prices_equal_each_waypoints_edges(env_id):
 def test_onward_travel_is_the_priced_travel(env_id):
     # least_free_travel ranks onward moves by a travel-only kernel: bit for bit the
     # travel that step pays, inf off the rows and targets asked for.
-    from envs.moves import _onward_travel
+    from ikbranch_gym.envs.moves import _onward_travel
 
     ladder = _ladder(env_id, seed=2)
     k = ladder.valid.shape[1]
@@ -133,7 +133,7 @@ def test_waypoints_outside_the_task_are_refused():
 def test_next_targets_follow_a_stable_sort_of_each_row():
     # The onward search takes targets cheapest first, ties by index: a scan per round
     # gives the order a stable argsort of the row gives.
-    from envs.moves import _next_targets
+    from ikbranch_gym.envs.moves import _next_targets
 
     rng = np.random.default_rng(4)
     travel = np.round(rng.uniform(0, 3, size=(2, 5, 9)), 1)  # many ties
@@ -159,7 +159,7 @@ def test_next_targets_follow_a_stable_sort_of_each_row():
 def test_turn_copies_share_their_endpoint_checks_with_the_same_verdicts(env_id):
     # One check per closed-form branch (its turn copies place every link alike): the
     # verdict of every copy is the loop backend's, configuration by configuration.
-    from envs.models import CollisionChecker
+    from ikbranch_gym.envs.models import CollisionChecker
 
     env = make(env_id, n_waypoints=4)
     base = env.unwrapped

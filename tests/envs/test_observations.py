@@ -9,8 +9,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import envs
-from envs.observations import OBSERVATIONS
+import ikbranch_gym.envs as envs
+from ikbranch_gym.envs.observations import OBSERVATIONS
 from tests.envs.env_cases import IDS
 
 
@@ -74,7 +74,7 @@ def test_free_travel_out_is_the_cheapest_collision_free_continuation(env_id):
     # Brute force: every path from each slot-0 branch to every branch of the waypoint
     # after, checked by a separate checker (the loop backend), at every step of episodes
     # played by random valid actions.
-    from envs.models import CollisionChecker
+    from ikbranch_gym.envs.models import CollisionChecker
 
     env = gym.make(env_id, n_waypoints=4)
     base = env.unwrapped
@@ -138,7 +138,7 @@ def test_a_task_met_again_takes_its_templates_from_the_cache(kind, monkeypatch):
     kept = builder.templates(ladder)
     assert kept is first and len(builder._cache) == 1
     # Past its bound the cache starts afresh (here: room for one task).
-    monkeypatch.setattr("envs.observations.TEMPLATE_CACHE_BYTES", first.nbytes)
+    monkeypatch.setattr("ikbranch_gym.envs.observations.TEMPLATE_CACHE_BYTES", first.nbytes)
     seed = 4
     while np.array_equal(base.ladder.candidates, ladder.candidates):
         env.reset(seed=seed)
@@ -168,7 +168,7 @@ def test_tasks_that_never_repeat_fill_no_template_cache():
 @pytest.mark.parametrize("env_id", IDS)
 def test_travel_summaries_are_the_priced_travel(env_id):
     # Bit for bit the travel step pays (envs.moves._price), least over the free branches.
-    from envs.observations import _travel_summaries
+    from ikbranch_gym.envs.observations import _travel_summaries
 
     env = gym.make(env_id, n_waypoints=4)
     env.reset(seed=5)
@@ -194,7 +194,11 @@ def test_travel_summaries_are_the_priced_travel(env_id):
 def test_factored_travel_summaries_are_the_general_ones(env_id):
     # An arm's turn branches factor its ladder (closed-form branch × turn windows): the
     # least travel taken over the factors is the least over every pair, bit for bit.
-    from envs.observations import _travel_summaries, _turn_tables, _turned_travel_summaries
+    from ikbranch_gym.envs.observations import (
+        _travel_summaries,
+        _turn_tables,
+        _turned_travel_summaries,
+    )
 
     env = gym.make(env_id, n_waypoints=4)
     base = env.unwrapped
@@ -230,7 +234,7 @@ def test_factored_travel_summaries_are_the_general_ones(env_id):
 
 
 def test_an_arm_with_hundreds_of_branches_sums_its_factors():
-    from envs.observations import FACTORED_BRANCHES
+    from ikbranch_gym.envs.observations import FACTORED_BRANCHES
 
     assert gym.make("IKBranch/UR5e-v0").unwrapped._observations._turns is not None
     assert gym.make("IKBranch/KukaKR6-v0").unwrapped.arm.n_branches < FACTORED_BRANCHES

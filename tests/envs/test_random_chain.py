@@ -7,14 +7,14 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import envs
-from envs.costs import TransitionCost
-from envs.kinematics import make_arm
-from envs.models import CollisionChecker, arm_spec
-from envs.models.builders import add_part, add_static_body, compile_spec
-from envs.moves import MovePricer
-from envs.random_chain import random_chain
-from envs.tasks.random_reachable import random_reachable
+import ikbranch_gym.envs as envs
+from ikbranch_gym.envs.costs import TransitionCost
+from ikbranch_gym.envs.kinematics import make_arm
+from ikbranch_gym.envs.models import CollisionChecker, arm_spec
+from ikbranch_gym.envs.models.builders import add_part, add_static_body, compile_spec
+from ikbranch_gym.envs.moves import MovePricer
+from ikbranch_gym.envs.random_chain import random_chain
+from ikbranch_gym.envs.tasks.random_reachable import random_reachable
 
 RANDOM_IDS = [env_id for env_id, kwargs in envs.ENV_SPECS.items() if kwargs["task"] == "random"]
 

@@ -5,9 +5,9 @@ from __future__ import annotations
 import imageio.v3 as iio
 import numpy as np
 
-from envs.kinematics import make_arm
-from envs.models import build_model
-from envs.render import SceneRenderer, main
+from ikbranch_gym.envs.kinematics import make_arm
+from ikbranch_gym.envs.models import build_model
+from ikbranch_gym.envs.render import SceneRenderer, main
 
 
 def test_frame_shows_the_arm():

@@ -7,12 +7,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from envs.ik_branch_env import IKBranchEnv
-from envs.kinematics import make_arm
-from envs.models.scene_file import base_pose
-from envs.models.scenes import milling_cell_poses
-from envs.task_frame import FramedArm, TaskFrame
-from envs.tools import Tool
+from ikbranch_gym.envs.ik_branch_env import IKBranchEnv
+from ikbranch_gym.envs.kinematics import make_arm
+from ikbranch_gym.envs.models.scene_file import base_pose
+from ikbranch_gym.envs.models.scenes import milling_cell_poses
+from ikbranch_gym.envs.task_frame import FramedArm, TaskFrame
+from ikbranch_gym.envs.tools import Tool
 
 TOOL = {"shape": "cylinder", "size": [0.03, 0.12],
         "tcp": {"pos": [0.0, 0.04, 0.12], "rpy": [0.2, 0.0, 0.0]}}
@@ -47,7 +47,7 @@ def test_every_framed_branch_reaches_the_task_pose(arm_name):
 
 def test_a_placed_arm_with_a_tool_serves_the_cells_poses():
     # The IRB 4600 of IRB4600ToolTransfer-v0: placed between rack and mill, a gripper.
-    import envs
+    import ikbranch_gym.envs as envs
 
     kwargs = envs.ENV_SPECS["IKBranch/IRB4600ToolTransfer-v0"]
     assert kwargs["scene_options"]["base_pos"] != [0.0, 0.0, 0.0] and kwargs["tool"]

@@ -8,8 +8,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from envs.ik_branch_env import IKBranchEnv
-from envs.tools import Tool
+from ikbranch_gym.envs.ik_branch_env import IKBranchEnv
+from ikbranch_gym.envs.tools import Tool
 
 TORCH = {"shape": "cylinder", "size": [0.02, 0.3],
          "offset": {"pos": [0.0, 0.01, 0.0], "rpy": [0.3, 0.0, 0.0]},

@@ -11,8 +11,8 @@ import pytest
 from gymnasium.utils.env_checker import data_equivalence
 from gymnasium.vector import AutoresetMode
 
-import envs
-from envs.vector_env import IKBranchVectorEnv
+import ikbranch_gym.envs as envs
+from ikbranch_gym.envs.vector_env import IKBranchVectorEnv
 from tests.envs.env_cases import FAST, IDS
 
 MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
@@ -119,7 +119,8 @@ def test_spaces_and_metadata():
 @pytest.mark.parametrize("env_id", ["IKBranch/Cartesian-v2", "IKBranch/IRB4600ToolTransfer-v0"])
 def test_every_registered_id_has_a_vector_entry_point(env_id):
     for registered in envs.ENV_IDS:
-        assert gym.spec(registered).vector_entry_point == "envs.vector_env:IKBranchVectorEnv"
+        assert (gym.spec(registered).vector_entry_point
+                == "ikbranch_gym.envs.vector_env:IKBranchVectorEnv")
     vec = gym.make_vec(env_id, num_envs=2)  # the default mode for such an id
     assert isinstance(vec.unwrapped, IKBranchVectorEnv)
 

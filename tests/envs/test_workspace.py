@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from envs.kinematics import make_arm
-from envs.kinematics.rod import RodMechanism
-from envs.workspace import (
+from ikbranch_gym.envs.kinematics import make_arm
+from ikbranch_gym.envs.kinematics.rod import RodMechanism
+from ikbranch_gym.envs.workspace import (
     limits_from_ranges,
     main,
     run,

@@ -11,25 +11,25 @@ from pathlib import Path
 
 import pytest
 
-from train import cli
+from ikbranch_gym.train import cli
 
 ROOT = Path(__file__).resolve().parents[2]
 #: subcommand -> the module ``python -m`` runs, and a line of its own --help.
 FORWARDED = {
-    "plan": ("train.plan", "usage: ikbranch plan"),
-    "train": ("train.__main__", "usage: python -m train "),
-    "evaluate": ("train.evaluate", "usage: python -m train.evaluate"),
-    "demo": ("train.demo", "usage: python -m train.demo"),
-    "sweep": ("train.sweep", "usage: python -m train.sweep"),
-    "aggregate": ("train.aggregate", "usage: python -m train.aggregate"),
+    "plan": ("ikbranch_gym.train.plan", "usage: ikbranch plan"),
+    "train": ("ikbranch_gym.train.__main__", "usage: python -m train "),
+    "evaluate": ("ikbranch_gym.train.evaluate", "usage: python -m train.evaluate"),
+    "demo": ("ikbranch_gym.train.demo", "usage: python -m train.demo"),
+    "sweep": ("ikbranch_gym.train.sweep", "usage: python -m train.sweep"),
+    "aggregate": ("ikbranch_gym.train.aggregate", "usage: python -m train.aggregate"),
 }
 
 
 def test_pyproject_declares_the_console_command():
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
-    assert project["scripts"] == {"ikbranch": "train.cli:main"}
-    assert "train" in tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"][
-        "setuptools"]["packages"]
+    assert project["scripts"] == {"ikbranch": "ikbranch_gym.train.cli:main"}
+    assert "ikbranch_gym.train" in tomllib.loads((ROOT / "pyproject.toml").read_text())[
+        "tool"]["setuptools"]["packages"]
 
 
 def test_help_lists_every_subcommand():
@@ -41,9 +41,10 @@ def test_help_lists_every_subcommand():
     assert listed == list(FORWARDED) == list(cli.COMMANDS)
     # Listing the commands imports none of them (no torch, no Ray).
     probe = subprocess.run(
-        [sys.executable, "-c", "import sys; from train import cli; cli.main(['--help']); "
-         "print(sorted(m for m in ('torch', 'ray', 'mujoco', 'train.plan') if m in "
-         "sys.modules))"], capture_output=True, text=True, timeout=120)
+        [sys.executable, "-c", "import sys; from ikbranch_gym.train import cli; "
+         "cli.main(['--help']); print(sorted(m for m in ('torch', 'ray', 'mujoco', "
+         "'ikbranch_gym.train.plan') if m in sys.modules))"],
+        capture_output=True, text=True, timeout=120)
     assert probe.stdout.strip().splitlines()[-1] == "[]"
 
 
@@ -96,7 +97,7 @@ def test_python_m_forms_still_run():
 def test_the_demo_runs_end_to_end_on_a_tiny_budget(tmp_path, capsys):
     # make demo's pipeline: the worked example, training, the evaluation table, the plots
     # and the GIF (rendered for real), on a budget of one rollout.
-    from train import demo
+    from ikbranch_gym.train import demo
 
     run = tmp_path / "demo"
     assert demo.main(["--run-dir", str(run), "--timesteps", "256", "--episodes", "2"]) == 0

@@ -8,9 +8,9 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import envs  # noqa: F401
-from agents.evaluation import evaluate
-from train.evaluate import main
+import ikbranch_gym.envs  # noqa: F401
+from ikbranch_gym.agents.evaluation import evaluate
+from ikbranch_gym.train.evaluate import main
 
 ENV = "IKBranch/RodMechanism-v1"
 KWARGS = {"n_waypoints": 5}
@@ -58,7 +58,7 @@ def test_evaluation_is_deterministic_under_a_seed():
 
 def test_success_and_travel_match_a_hand_played_episode():
     results = evaluate(ENV, ["paper_rule"], episodes=1, seed=3, env_kwargs=KWARGS)
-    from agents import make_baseline
+    from ikbranch_gym.agents import make_baseline
 
     env = gym.make(ENV, **KWARGS)
     policy = make_baseline("paper_rule", env)
@@ -84,7 +84,7 @@ def test_sb3_models_are_recognised_and_masked(tmp_path, algorithm):
     path = tmp_path / f"{algorithm}.zip"
     model.save(path)
 
-    from agents.sb3 import SB3Policy
+    from ikbranch_gym.agents.sb3 import SB3Policy
 
     policy = SB3Policy.load(path, gym.make(ENV, **KWARGS))
     assert policy.maskable == (algorithm == "MaskablePPO")
@@ -112,14 +112,14 @@ def test_cli_defaults_to_held_out_tasks_and_scenes(tmp_path):
     main(["--env", "IKBranch/Cartesian-v2", "--env-kwargs", '{"n_waypoints": 3}',
           "--policy", "paper_rule", "--episodes", "2", "--json", str(out)])
     results = json.loads(out.read_text())
-    from envs.seeds import HELD_OUT_SCENES, TEST_SEED
+    from ikbranch_gym.envs.seeds import HELD_OUT_SCENES, TEST_SEED
 
     assert results["seed"] == TEST_SEED
     assert results["env_kwargs"]["scene_seeds"] == list(HELD_OUT_SCENES)
 
 
 def test_baseline_specs_are_checked_without_an_env():
-    from agents.evaluation import parse_spec
+    from ikbranch_gym.agents.evaluation import parse_spec
 
     assert parse_spec("paper_rule") == ("paper_rule", {})
     assert parse_spec("receding_dp:4") == ("receding_dp", {"horizon": 4})

@@ -18,21 +18,21 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from agents import make_baseline
-from envs.ik_branch_env import IKBranchEnv
-from envs.kinematics import make_arm
-from envs.kinematics.paper_example import (
+from ikbranch_gym.agents import make_baseline
+from ikbranch_gym.envs.ik_branch_env import IKBranchEnv
+from ikbranch_gym.envs.kinematics import make_arm
+from ikbranch_gym.envs.kinematics.paper_example import (
     PRINTED_MIN_TRAVEL_DEG,
     corrected_table_deg,
     example_poses,
 )
-from envs.render import arm_geoms
-from envs.tasks.tool_transfer import _cell_poses
-from envs.tasks.waypoint_file import read_waypoints, write_waypoints
-from envs.tools import Tool
-from train import cli
-from train import plan as plan_module
-from train.plan import EXIT_INPUT, EXIT_INTERNAL, EXIT_OK, EXIT_UNSAFE, main, play
+from ikbranch_gym.envs.render import arm_geoms
+from ikbranch_gym.envs.tasks.tool_transfer import _cell_poses
+from ikbranch_gym.envs.tasks.waypoint_file import read_waypoints, write_waypoints
+from ikbranch_gym.envs.tools import Tool
+from ikbranch_gym.train import cli
+from ikbranch_gym.train import plan as plan_module
+from ikbranch_gym.train.plan import EXIT_INPUT, EXIT_INTERNAL, EXIT_OK, EXIT_UNSAFE, main, play
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = ROOT / "examples"
@@ -183,8 +183,9 @@ def test_generated_task_written_and_read_back_is_the_same_episode(tmp_path, arm)
 
 # ------------------------------------------------------------------------- examples
 def test_paper_example_through_the_console_command(cell):
-    # The README's command through ``python -m train.cli`` (the console script's target).
-    result = subprocess.run([sys.executable, "-m", "train.cli", *shlex.split(PAPER)[1:]],
+    # The README's command through the installed console script.
+    console = Path(sys.executable).with_name("ikbranch")
+    result = subprocess.run([str(console), *shlex.split(PAPER)[1:]],
                             capture_output=True, text=True, cwd=cell,
                             env={**os.environ, "MUJOCO_GL": "egl"}, timeout=300)
     assert result.returncode == EXIT_OK, result.stderr

@@ -10,13 +10,13 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from agents import DPOracle
-from agents.evaluation import ORACLE, run_episode, summarise
-from agents.sb3 import SB3Policy
-from envs.models import CollisionChecker
-from envs.seeds import TEST_SEED
+from ikbranch_gym.agents import DPOracle
+from ikbranch_gym.agents.evaluation import ORACLE, run_episode, summarise
+from ikbranch_gym.agents.sb3 import SB3Policy
+from ikbranch_gym.envs.models import CollisionChecker
+from ikbranch_gym.envs.seeds import TEST_SEED
+from ikbranch_gym.train.results import EVAL_EPISODES, RESULTS, ROOT, model_path
 from tests.agents.brute_force import brute_force
-from train.results import EVAL_EPISODES, RESULTS, ROOT, model_path
 
 RECORDS = sorted(RESULTS.glob("*.json"))
 #: Published tasks per env whose optimum is enumerated (up to 8^8 sequences each).

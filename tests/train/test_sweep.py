@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from train import aggregate, sweep
+from ikbranch_gym.train import aggregate, sweep
 
 TINY = ['--hyperparams', '{"n_steps": 32, "batch_size": 32, "n_epochs": 1, '
         '"eval_freq": 64, "n_eval_episodes": 2, "checkpoint_freq": 64}']
@@ -42,7 +42,7 @@ def test_tiny_sweep_writes_run_directories_and_resumes(tmp_path):
                           for seed, d in models.items()}
         # Archived, the records alone aggregate to the same numbers, and a later sweep
         # (another root: another machine or run) skips the archived trials.
-        from train import publish
+        from ikbranch_gym.train import publish
 
         records = aggregate.aggregate(tmp_path)
         archived = publish.archive(tmp_path, store)
@@ -153,7 +153,7 @@ def test_a_rival_optimal_on_some_tasks_caps_the_probability_of_improvement(tmp_p
     policies = records[env]["policies"]
     assert policies["paper_rule"]["optimal"] == 0.25 and policies["ppo"]["optimal"] == 1.0
     assert policies["ppo"]["improvement"]["paper_rule"][0] == pytest.approx(1 - 0.25 / 2)
-    from train.publish import goal_lines
+    from ikbranch_gym.train.publish import goal_lines
 
     line = next(line for line in goal_lines(records) if "P(improvement" in line)
     assert "attains the optimum on 25.0% of the tasks: P can be at most 0.875" in line
@@ -164,7 +164,7 @@ def test_probability_of_improvement_equals_rliables():
     # (scores on a coarse grid tie often; identical columns take rliable's 0.5 branch).
     from rliable import metrics
 
-    from train.aggregate import probability_of_improvement
+    from ikbranch_gym.train.aggregate import probability_of_improvement
 
     rng = np.random.default_rng(0)
     for runs_x, runs_y in ((5, 1), (3, 3), (1, 1), (5, 5)):
@@ -198,7 +198,7 @@ def test_intervals_are_reproducible_whatever_numpys_global_state():
                                   "<!-- /results -->\n<!-- results: written by python -m "
                                   "train.aggregate --publish; do not edit -->\n"])
 def test_the_readme_table_needs_its_markers_in_order(tmp_path, text):
-    from train import publish
+    from ikbranch_gym.train import publish
 
     readme = tmp_path / "README.md"
     readme.write_text(text)
@@ -210,7 +210,7 @@ def test_the_readme_table_needs_its_markers_in_order(tmp_path, text):
 def test_publishing_keeps_the_learned_rows_whose_trials_the_archive_does_not_hold(tmp_path):
     # A sweep that adds one id (or an archive that lost trials) must not erase the rows
     # it did not re-run: they are carried over, marked, and their models left alone.
-    from train import publish
+    from ikbranch_gym.train import publish
 
     env = _synthetic_root(tmp_path / "full", np.full((2, 20), 0.9), rival=np.full(20, 0.2))
     published = aggregate.aggregate(tmp_path / "full")
@@ -241,7 +241,7 @@ def test_publishing_keeps_the_learned_rows_whose_trials_the_archive_does_not_hol
 def test_a_sweep_still_rerunning_a_rows_seeds_does_not_shrink_it(tmp_path):
     import shutil
 
-    from train import publish
+    from ikbranch_gym.train import publish
 
     env = _synthetic_root(tmp_path, np.array([np.full(20, 0.9), np.full(20, 0.5)]),
                           rival=np.full(20, 0.2))
@@ -256,7 +256,7 @@ def test_a_sweep_still_rerunning_a_rows_seeds_does_not_shrink_it(tmp_path):
 
 
 def test_publishing_again_keeps_a_reproduced_representative_and_writes_nothing_half(tmp_path):
-    from train import publish
+    from ikbranch_gym.train import publish
 
     root = tmp_path / "root"
     env = _synthetic_root(root, np.array([np.full(20, 0.9), np.full(20, 0.5)]),
@@ -292,7 +292,7 @@ def test_publishing_again_keeps_a_reproduced_representative_and_writes_nothing_h
 
 
 def test_a_row_is_not_carried_over_onto_other_baselines(tmp_path):
-    from train import publish
+    from ikbranch_gym.train import publish
 
     env = _synthetic_root(tmp_path, np.full((2, 20), 0.9), rival=np.full(20, 0.2))
     published = aggregate.aggregate(tmp_path)

@@ -10,10 +10,17 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from agents.evaluation import run_episode
-from agents.sb3 import SB3Policy
+from ikbranch_gym.agents.evaluation import run_episode
+from ikbranch_gym.agents.sb3 import SB3Policy
+from ikbranch_gym.train.publish import (
+    MODELS,
+    README,
+    README_BEGIN,
+    README_END,
+    SWEEP_RESULTS,
+    readme_summary,
+)
 from tests.train.test_results import judged_success
-from train.publish import MODELS, README, README_BEGIN, README_END, SWEEP_RESULTS, readme_summary
 
 AGGREGATE = SWEEP_RESULTS / "aggregate.json"
 #: Episodes replayed per model (of the 200 published): the first ones, in order.

@@ -11,9 +11,9 @@ import pytest
 import yaml
 from sb3_contrib import MaskablePPO
 
-import envs
-from train.hyperparams import ALGORITHMS, CONFIG, hyperparams_for, load_config
-from train.training import RunConfig, resolve
+import ikbranch_gym.envs as envs
+from ikbranch_gym.train.hyperparams import ALGORITHMS, CONFIG, hyperparams_for, load_config
+from ikbranch_gym.train.training import RunConfig, resolve
 
 TINY = '{"n_steps": 64, "batch_size": 32, "n_epochs": 2, "eval_freq": 400, ' \
        '"n_eval_episodes": 2, "checkpoint_freq": 400}'
@@ -119,7 +119,7 @@ def test_unknown_env_id_is_rejected_by_the_cli(tmp_path):
 @pytest.mark.parametrize(("algo", "policy_name"),
                          [("ppo", "BranchPolicy"), ("maskable_ppo", "MaskableBranchPolicy")])
 def test_branch_policy_from_a_config_name(algo, policy_name, tmp_path):
-    from train.training import train
+    from ikbranch_gym.train.training import train
 
     run = RunConfig(
         algo=algo, env_id="IKBranch/ToolTransfer-v0", seed=0, run_dir=tmp_path / algo,

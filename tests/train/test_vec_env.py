@@ -9,9 +9,9 @@ import pytest
 from sb3_contrib.common.maskable.utils import get_action_masks
 from stable_baselines3.common.env_util import make_vec_env
 
-import envs  # noqa: F401
-from train.training import RunConfig, train
-from train.vec_env import NativeVecEnv, make_native_vec_env
+import ikbranch_gym.envs  # noqa: F401
+from ikbranch_gym.train.training import RunConfig, train
+from ikbranch_gym.train.vec_env import NativeVecEnv, make_native_vec_env
 
 
 def _same(a, b) -> bool:

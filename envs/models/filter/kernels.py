@@ -16,7 +16,7 @@ import numpy as np
 from numba.core import types
 from numba.experimental import structref
 
-from envs.jit import njit
+from ikbranch_gym.envs.jit import njit
 
 from .. import native
 from .layout import BOX, CAPSULE, CYLINDER, PLANE, SPHERE

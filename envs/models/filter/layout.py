@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from envs.jit import njit
+from ikbranch_gym.envs.jit import njit
 
 #: Reported distances are trusted only up to this (m): a pair counts as proven free only
 #: when its lower bound exceeds the contact margin by this much.

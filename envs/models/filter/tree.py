@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from envs.jit import njit
+from ikbranch_gym.envs.jit import njit
 
 from .layout import _SLIDE
 

@@ -71,7 +71,7 @@ def joint_chain(arm) -> list[tuple]:
     OPW (opw_kinematics' convention, joint = (θ + offset)·sign): Rz(θ1)·T(a1, b, c1)·
     Ry(θ2)·T(0, 0, c2)·Ry(θ3)·T(a2, 0, c3)·Rz(θ4)·Ry(θ5)·Rz(θ6)·T(0, 0, c4). UR: UR's DH
     chain, Rz(θi)·Tz(di)·Tx(ai)·Rx(αi) with α = (π/2, 0, 0, π/2, −π/2, 0)."""
-    from envs.kinematics import OpwArm, UrArm
+    from ikbranch_gym.envs.kinematics import OpwArm, UrArm
 
     if isinstance(arm, OpwArm):
         sign, offset = arm.sign_corrections, arm.offsets

@@ -7,8 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from envs.kinematics import make_arm
-from envs.kinematics.rotations import homogeneous, rot_x, rot_z
+from ikbranch_gym.envs.kinematics import make_arm
+from ikbranch_gym.envs.kinematics.rotations import homogeneous, rot_x, rot_z
 
 ARM = make_arm("anthropomorphic")
 

@@ -7,8 +7,8 @@ import warnings
 import numpy as np
 import pytest
 
-from envs.kinematics import ARM_NAMES, INDUSTRIAL_ARM_NAMES, SEED_ARM_NAMES, make_arm
-from envs.kinematics.arm import PRISMATIC, REVOLUTE
+from ikbranch_gym.envs.kinematics import ARM_NAMES, INDUSTRIAL_ARM_NAMES, SEED_ARM_NAMES, make_arm
+from ikbranch_gym.envs.kinematics.arm import PRISMATIC, REVOLUTE
 
 N_CONFIGS = 1000
 FK_TOL = 1e-9

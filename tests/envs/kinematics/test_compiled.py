@@ -21,9 +21,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from envs.kinematics import ARM_NAMES, make_arm
-from envs.kinematics import compiled as compiled_module
-from envs.kinematics.compiled import (
+from ikbranch_gym.envs.kinematics import ARM_NAMES, make_arm
+from ikbranch_gym.envs.kinematics import compiled as compiled_module
+from ikbranch_gym.envs.kinematics.compiled import (
     KERNELS,
     closed_form_rows,
     compiled_solve_poses,
@@ -199,8 +199,8 @@ def test_the_cache_is_named_by_every_source_of_the_package(tmp_path):
 _LOAD_SCRIPT = """
 import json, time
 start = time.perf_counter()
-from envs.kinematics import make_arm
-from envs.kinematics.compiled import compiled_solve_poses
+from ikbranch_gym.envs.kinematics import make_arm
+from ikbranch_gym.envs.kinematics.compiled import compiled_solve_poses
 arm = make_arm("opw")
 arm.ik(arm.fk(arm.home))
 stats = compiled_solve_poses().stats

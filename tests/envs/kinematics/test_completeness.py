@@ -30,7 +30,7 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from envs.kinematics import OpwArm, UrArm, make_arm
+from ikbranch_gym.envs.kinematics import OpwArm, UrArm, make_arm
 from tests.envs.kinematics.industrial import (
     FK_TOL,
     chain_fk,

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from envs.kinematics import make_arm
-from envs.kinematics.rotations import rot_x
+from ikbranch_gym.envs.kinematics import make_arm
+from ikbranch_gym.envs.kinematics.rotations import rot_x
 
 ARM = make_arm("cylindrical4")
 

@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from envs.kinematics.dual import (
+from ikbranch_gym.envs.kinematics.dual import (
     DualPprPrrArm,
     DualRrpRppArm,
     DualRrrPppArm,
     solve_zxz,
 )
-from envs.kinematics.rotations import rot_x, rot_z
+from ikbranch_gym.envs.kinematics.rotations import rot_x, rot_z
 
 ARM_CLASSES = (DualRrpRppArm, DualRrrPppArm, DualPprPrrArm)
 #: Index of the middle Z–X–Z angle, whose sign names the branch (``phi1+`` …).

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from envs.kinematics import frenet_pose, frenet_rotation, pose_from_points
-from envs.kinematics.rotations import rot_x, rot_y, rot_z
+from ikbranch_gym.envs.kinematics import frenet_pose, frenet_rotation, pose_from_points
+from ikbranch_gym.envs.kinematics.rotations import rot_x, rot_y, rot_z
 
 
 def body_points(rotation, origin, a, b, c):

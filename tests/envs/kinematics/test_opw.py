@@ -7,8 +7,8 @@ import warnings
 import numpy as np
 import pytest
 
-from envs.kinematics import make_arm
-from envs.kinematics.opw import OpwArm
+from ikbranch_gym.envs.kinematics import make_arm
+from ikbranch_gym.envs.kinematics.opw import OpwArm
 from tests.envs.kinematics.industrial import (
     FK_TOL,
     assert_round_trip,

@@ -12,7 +12,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-import envs.kinematics
+import ikbranch_gym.envs.kinematics as kinematics
 
 ALLOWED_MODULES = {
     "__future__", "numpy", "abc", "collections", "dataclasses", "functools", "itertools",
@@ -34,7 +34,7 @@ def imported_modules(path: Path) -> set[str]:
 
 
 def test_kinematics_imports_only_numpy_and_the_standard_typing_modules():
-    package = Path(envs.kinematics.__file__).parent
+    package = Path(kinematics.__file__).parent
     files = sorted(package.glob("*.py"))
     assert len(files) >= 8
     for path in files:
@@ -42,10 +42,10 @@ def test_kinematics_imports_only_numpy_and_the_standard_typing_modules():
         assert not extra, f"{path.name} imports {sorted(extra)}"
 
 
-def test_importing_the_package_does_not_import_numba_only_ik_does():
+def test_importing_the_package_does_not_import_numba_only_ik_does(tmp_path):
     code = (
         "import sys, numpy as np\n"
-        "from envs.kinematics import make_arm\n"
+        "from ikbranch_gym.envs.kinematics import make_arm\n"
         "arm = make_arm('opw')\n"
         "pose = arm.fk(np.stack([arm.home] * 2))\n"
         "print('numba' in sys.modules)\n"
@@ -53,7 +53,7 @@ def test_importing_the_package_does_not_import_numba_only_ik_does():
         "print('numba' in sys.modules)\n"
     )
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                            check=True, cwd=Path(envs.kinematics.__file__).parents[2])
+                            check=True, cwd=tmp_path)
     assert result.stdout.split() == ["False", "True"]
 
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from envs.kinematics.rod import RodMechanism, psi_from_sides
+from ikbranch_gym.envs.kinematics.rod import RodMechanism, psi_from_sides
 
 N_CONFIGS = 1000
 FK_TOL = 1e-9

@@ -12,8 +12,8 @@ import re
 import numpy as np
 import pytest
 
-from envs.kinematics import INDUSTRIAL_ARM_NAMES, SEED_ARM_NAMES, make_arm
-from envs.kinematics.arm import MAX_BRANCHES
+from ikbranch_gym.envs.kinematics import INDUSTRIAL_ARM_NAMES, SEED_ARM_NAMES, make_arm
+from ikbranch_gym.envs.kinematics.arm import MAX_BRANCHES
 from tests.envs.kinematics.industrial import assert_round_trip, sample
 
 #: name -> (K, {joint: windows as (lower, upper) in degrees}) by hand from the data sheets.

@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 import pytest
 
-from envs.kinematics import make_arm
+from ikbranch_gym.envs.kinematics import make_arm
 from tests.envs.kinematics.industrial import (
     FK_TOL,
     assert_round_trip,

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from envs.kinematics import make_arm
-from envs.kinematics.paper_example import (
+from ikbranch_gym.envs.kinematics import make_arm
+from ikbranch_gym.envs.kinematics.paper_example import (
     PRINTED_MIN_TRAVEL_DEG,
     PRINTED_TABLE_DEG,
     ROW_BRANCH,
@@ -72,7 +72,7 @@ def test_minimum_travel_is_the_papers(solved):
 
 
 def test_worked_example_cli_prints_the_table(capsys):
-    from envs import worked_example
+    from ikbranch_gym.envs import worked_example
 
     worked_example.main()
     out = capsys.readouterr().out

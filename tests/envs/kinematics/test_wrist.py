@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from envs.kinematics.wrist import solve_yxy_wrist, wrist_rotation
+from ikbranch_gym.envs.kinematics.wrist import solve_yxy_wrist, wrist_rotation
 
 angles = st.floats(-np.pi, np.pi, exclude_max=True)
 

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from envs.kinematics import ARM_NAMES, make_arm
-from envs.models import SCENES
+from ikbranch_gym.envs.kinematics import ARM_NAMES, make_arm
+from ikbranch_gym.envs.models import SCENES
 
 #: The two-arm systems: sites ``link3`` and ``link4`` instead of ``ee``.
 TWO_ARM_NAMES = tuple(name for name in ARM_NAMES if make_arm(name).relative)

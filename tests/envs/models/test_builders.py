@@ -8,9 +8,14 @@ import mujoco
 import numpy as np
 import pytest
 
-from envs.kinematics import ARM_NAMES, make_arm
-from envs.models import TREE_BUILDERS, build_arm_model, build_model, register_tree_builder
-from envs.tools import Tool
+from ikbranch_gym.envs.kinematics import ARM_NAMES, make_arm
+from ikbranch_gym.envs.models import (
+    TREE_BUILDERS,
+    build_arm_model,
+    build_model,
+    register_tree_builder,
+)
+from ikbranch_gym.envs.tools import Tool
 from tests.envs.models.conftest import SINGLE_ARM_NAMES, TWO_ARM_NAMES, scene_cases
 
 N_CONFIGS = 1000

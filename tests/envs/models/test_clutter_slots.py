@@ -10,9 +10,9 @@ import mujoco
 import numpy as np
 import pytest
 
-import envs  # noqa: F401
-from envs.models import CollisionChecker, build_model, candidate_pairs
-from envs.seeds import HELD_OUT_SCENES, TRAIN_SCENES
+import ikbranch_gym.envs  # noqa: F401
+from ikbranch_gym.envs.models import CollisionChecker, build_model, candidate_pairs
+from ikbranch_gym.envs.seeds import HELD_OUT_SCENES, TRAIN_SCENES
 
 ARMS = ("anthropomorphic", "cylindrical", "kuka_kr6_r700")
 
@@ -123,7 +123,7 @@ def test_a_new_scene_forgets_the_old_verdicts():
 def test_parked_slots_are_skipped_and_come_back_when_laid():
     # A parked slot (100 m below) is beyond every arm geom's reach: its pairs are marked
     # OUT_OF_REACH and skipped; laid again, they are checked again.
-    from envs.models.filter.layout import OUT_OF_REACH
+    from ikbranch_gym.envs.models.filter.layout import OUT_OF_REACH
 
     env = _env("anthropomorphic")
     scene = env.checker._filter.scene
@@ -148,7 +148,7 @@ def test_parked_slots_are_skipped_and_come_back_when_laid():
 def test_a_refreshed_filter_equals_one_compiled_for_the_laid_scene(arm_name):
     # refresh_static re-reads only the obstacle slots; a scene compiled afresh from the
     # laid model reads everything (static frames from MuJoCo's own kinematics).
-    from envs.models.filter import compile_scene
+    from ikbranch_gym.envs.models.filter import compile_scene
 
     env = _env(arm_name)
     checker = env.checker

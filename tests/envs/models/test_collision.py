@@ -8,10 +8,10 @@ import mujoco
 import numpy as np
 import pytest
 
-from envs.kinematics import ARM_NAMES, make_arm
-from envs.models import CollisionChecker, arm_spec, build_model
-from envs.models.builders import add_part, add_static_body, compile_spec
-from envs.models.collision import candidate_pairs
+from ikbranch_gym.envs.kinematics import ARM_NAMES, make_arm
+from ikbranch_gym.envs.models import CollisionChecker, arm_spec, build_model
+from ikbranch_gym.envs.models.builders import add_part, add_static_body, compile_spec
+from ikbranch_gym.envs.models.collision import candidate_pairs
 from tests.envs.models.conftest import TWO_ARM_NAMES, scene_cases
 
 
@@ -362,7 +362,7 @@ def test_advancing_loop_handles_a_tilted_plane():
 
 def test_free_path_results_compare_equal():
     # first_fraction is NaN on a free path; two free results must still be equal.
-    from envs.models.collision import PathResult
+    from ikbranch_gym.envs.models.collision import PathResult
 
     free = [PathResult(False, float("nan"), (), 12) for _ in range(2)]
     assert free[0] == free[1] and hash(free[0]) == hash(free[1])

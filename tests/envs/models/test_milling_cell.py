@@ -5,8 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from envs.kinematics import make_arm
-from envs.models import RECOMMENDED_BRANCHES, CollisionChecker, build_model, milling_cell_poses
+from ikbranch_gym.envs.kinematics import make_arm
+from ikbranch_gym.envs.models import (
+    RECOMMENDED_BRANCHES,
+    CollisionChecker,
+    build_model,
+    milling_cell_poses,
+)
 
 #: The paper's table (degrees) for solutions 1.1 and 2.1.
 PAPER_1_1 = (-22.43, 22.97, -85.88, 69.82, 80.0, 64.70)

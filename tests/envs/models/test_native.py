@@ -5,7 +5,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from envs.models import build_model, native
+from ikbranch_gym.envs.models import build_model, native
 
 
 def test_ncon_view_follows_mujoco():

@@ -19,11 +19,16 @@ import numpy as np
 import pytest
 from scipy.spatial import ConvexHull
 
-from envs.kinematics import make_arm
-from envs.models import CollisionChecker, build_arm_model, build_model, milling_cell_poses
-from envs.models import scene_file as sf
-from envs.models.builders import compile_spec
-from envs.models.scene_file import SceneFileError, add_scene_file, load_scene_file
+from ikbranch_gym.envs.kinematics import make_arm
+from ikbranch_gym.envs.models import (
+    CollisionChecker,
+    build_arm_model,
+    build_model,
+    milling_cell_poses,
+)
+from ikbranch_gym.envs.models import scene_file as sf
+from ikbranch_gym.envs.models.builders import compile_spec
+from ikbranch_gym.envs.models.scene_file import SceneFileError, add_scene_file, load_scene_file
 
 EXAMPLE = Path(__file__).resolve().parents[3] / "examples" / "milling_cell.xml"
 ARM = make_arm("anthropomorphic")
@@ -533,7 +538,7 @@ def test_parallel_builds_share_one_cache(tmp_path):
     path = _u_scene(tmp_path)
     script = (
         "import hashlib, sys\n"
-        "from envs.models.scene_file import load_scene_file\n"
+        "from ikbranch_gym.envs.models.scene_file import load_scene_file\n"
         f"scene = load_scene_file(sys.argv[1], coacd_options={FAST!r})\n"
         "h = hashlib.sha256()\n"
         "for part in scene.obstacles[0].parts:\n"
@@ -708,6 +713,6 @@ def test_errors_pickle_whole():
 
 
 def test_scene_file_is_registered():
-    from envs.models import SCENES
+    from ikbranch_gym.envs.models import SCENES
 
     assert SCENES["file"] is sf.file_scene

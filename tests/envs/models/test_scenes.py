@@ -11,10 +11,10 @@ import mujoco
 import numpy as np
 import pytest
 
-from envs.kinematics import make_arm
-from envs.models import build_model
-from envs.models.filter.layout import _GEOM_BOX, _GEOM_CAPSULE, _GEOM_CYLINDER
-from envs.models.scenes import (
+from ikbranch_gym.envs.kinematics import make_arm
+from ikbranch_gym.envs.models import build_model
+from ikbranch_gym.envs.models.filter.layout import _GEOM_BOX, _GEOM_CAPSULE, _GEOM_CYLINDER
+from ikbranch_gym.envs.models.scenes import (
     CLUTTER_SLOTS,
     PARKED,
     ClutterSlots,

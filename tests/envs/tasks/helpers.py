@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from envs.kinematics import Arm
-from envs.tasks import Task
+from ikbranch_gym.envs.kinematics import Arm
+from ikbranch_gym.envs.tasks import Task
 
 
 def half_space(arm: Arm):

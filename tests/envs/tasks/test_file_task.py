@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from envs.ik_branch_env import IKBranchEnv
-from envs.kinematics import make_arm
-from envs.kinematics.paper_example import example_poses
+from ikbranch_gym.envs.ik_branch_env import IKBranchEnv
+from ikbranch_gym.envs.kinematics import make_arm
+from ikbranch_gym.envs.kinematics.paper_example import example_poses
 
 PAPER_FILE = Path(__file__).parents[3] / "examples" / "paper_worked_example.csv"
 HEADER = "name,x,y,z,qw,qx,qy,qz\n"

@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from envs.kinematics import make_arm
-from envs.tasks import TASKS
-from envs.tasks.paths import TOOL_OFFSET
+from ikbranch_gym.envs.kinematics import make_arm
+from ikbranch_gym.envs.tasks import TASKS
+from ikbranch_gym.envs.tasks.paths import TOOL_OFFSET
 from tests.envs.tasks.helpers import (
     all_paths_free,
     assert_every_waypoint_has_a_free_branch,

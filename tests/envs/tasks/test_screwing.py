@@ -7,10 +7,10 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import envs  # noqa: F401
-from agents import make_baseline
-from envs.kinematics import make_arm
-from envs.tasks import TASKS
+import ikbranch_gym.envs  # noqa: F401
+from ikbranch_gym.agents import make_baseline
+from ikbranch_gym.envs.kinematics import make_arm
+from ikbranch_gym.envs.tasks import TASKS
 from tests.envs.tasks.helpers import all_paths_free, everywhere_free
 
 

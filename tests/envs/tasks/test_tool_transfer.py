@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from envs.kinematics import ARM_NAMES, make_arm
-from envs.kinematics.paper_example import example_poses, rack_slot_poses
-from envs.models import CollisionChecker, build_arm_model
-from envs.tasks import TASKS, tool_transfer
-from envs.tasks.tool_transfer import RACK_CLEARANCE, _parked_configurations
+from ikbranch_gym.envs.kinematics import ARM_NAMES, make_arm
+from ikbranch_gym.envs.kinematics.paper_example import example_poses, rack_slot_poses
+from ikbranch_gym.envs.models import CollisionChecker, build_arm_model
+from ikbranch_gym.envs.tasks import TASKS, tool_transfer
+from ikbranch_gym.envs.tasks.tool_transfer import RACK_CLEARANCE, _parked_configurations
 from tests.envs.tasks.helpers import (
     all_paths_free,
     assert_every_waypoint_has_a_free_branch,
@@ -166,7 +166,7 @@ def test_tool_changes_take_only_grips_whose_every_pose_has_a_free_branch():
 
 
 def test_the_free_parked_starts_are_the_parked_configurations_the_predicate_passes():
-    from envs.tasks.tool_transfer import _free_parked_configurations
+    from ikbranch_gym.envs.tasks.tool_transfer import _free_parked_configurations
 
     parked = _parked_configurations(ARM)
 

@@ -13,10 +13,14 @@ import math
 import numpy as np
 import pytest
 
-from envs.kinematics import make_arm
-from envs.kinematics.paper_example import POSITION_POINTS_MM, TOOL_ABC_MM, example_poses
-from envs.tasks import TASKS
-from envs.tasks.waypoint_file import (
+from ikbranch_gym.envs.kinematics import make_arm
+from ikbranch_gym.envs.kinematics.paper_example import (
+    POSITION_POINTS_MM,
+    TOOL_ABC_MM,
+    example_poses,
+)
+from ikbranch_gym.envs.tasks import TASKS
+from ikbranch_gym.envs.tasks.waypoint_file import (
     QUATERNION_TOL,
     ROTATION_TOL,
     WaypointFileError,

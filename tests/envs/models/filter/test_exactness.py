@@ -12,9 +12,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from envs.kinematics import make_arm
-from envs.models import CollisionChecker, arm_spec, build_model
-from envs.models.builders import add_part, add_static_body, compile_spec
+from ikbranch_gym.envs.kinematics import make_arm
+from ikbranch_gym.envs.models import CollisionChecker, arm_spec, build_model
+from ikbranch_gym.envs.models.builders import add_part, add_static_body, compile_spec
 from tests.envs.models.conftest import scene_cases
 
 #: Paths per arm × scene in the exactness tests (half short moves, half across the range).
@@ -97,7 +97,7 @@ def test_first_free_rows_are_the_full_checks_first_free_rows(backend):
 def test_milling_cell_transfers_equal_the_loop():
     arm = make_arm("anthropomorphic")
     model = build_model("anthropomorphic", "milling_cell")
-    from envs.models import milling_cell_poses
+    from ikbranch_gym.envs.models import milling_cell_poses
 
     (q1, ok1), (q2, ok2) = (arm.ik(pose) for pose in milling_cell_poses())
     assert ok1.all() and ok2.all()
@@ -192,8 +192,8 @@ def test_a_stack_checks_every_scene_as_its_own_filter():
     # Three clutters of one model in one stack: each row and path, tagged with its scene,
     # gets the verdict and first sample of that scene's own checker; a clutter laid in one
     # member afterwards is what the stack checks too.
-    from envs.models.filter import FilterStack, path_steps
-    from envs.models.scenes import CLUTTER_SLOTS, ClutterSlots, draw_clutter
+    from ikbranch_gym.envs.models.filter import FilterStack, path_steps
+    from ikbranch_gym.envs.models.scenes import CLUTTER_SLOTS, ClutterSlots, draw_clutter
 
     arm = make_arm("anthropomorphic")
     checkers, slots = [], []

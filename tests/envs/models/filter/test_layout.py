@@ -9,11 +9,11 @@ import mujoco
 import numpy as np
 import pytest
 
-from envs.kinematics import make_arm
-from envs.models import CollisionChecker, build_model
-from envs.models.collision import candidate_pairs
-from envs.models.filter import kernels, layout
-from envs.models.filter import tree as kinematics
+from ikbranch_gym.envs.kinematics import make_arm
+from ikbranch_gym.envs.models import CollisionChecker, build_model
+from ikbranch_gym.envs.models.collision import candidate_pairs
+from ikbranch_gym.envs.models.filter import kernels, layout
+from ikbranch_gym.envs.models.filter import tree as kinematics
 from tests.envs.models.conftest import scene_cases
 
 

@@ -9,11 +9,11 @@ import mujoco
 import numpy as np
 import pytest
 
-from envs.kinematics import make_arm
-from envs.models import CollisionChecker, build_model
-from envs.models.builders import add_part, compile_spec
-from envs.models.filter import kernels, layout, shapes
-from envs.models.filter import tree as kinematics
+from ikbranch_gym.envs.kinematics import make_arm
+from ikbranch_gym.envs.models import CollisionChecker, build_model
+from ikbranch_gym.envs.models.builders import add_part, compile_spec
+from ikbranch_gym.envs.models.filter import kernels, layout, shapes
+from ikbranch_gym.envs.models.filter import tree as kinematics
 from tests.envs.models.conftest import scene_cases
 
 
@@ -154,7 +154,7 @@ def test_inner_shapes_closer_than_the_margin_are_mujocos_contacts(first, second)
     # are closer than the pair's margin less the tolerance, mj_collision reports a
     # contact — for every collider the scenes use; primitive box pairs and a capsule
     # skewering a primitive box are excluded, as the filter excludes them.
-    from envs.models.filter.layout import WITNESS_TOLERANCE
+    from ikbranch_gym.envs.models.filter.layout import WITNESS_TOLERANCE
 
     rng = np.random.default_rng([list(_SHAPES).index(first), list(_SHAPES).index(second)])
     model = _pair_model(first, second, rng)

@@ -6,9 +6,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from envs.kinematics import make_arm
-from envs.models import CollisionChecker, build_model
-from envs.models.filter import tree as kinematics
+from ikbranch_gym.envs.kinematics import make_arm
+from ikbranch_gym.envs.models import CollisionChecker, build_model
+from ikbranch_gym.envs.models.filter import tree as kinematics
 from tests.envs.models.conftest import scene_cases
 
 
