@@ -176,6 +176,21 @@ class LazyLadder:
             self.check(*np.array(unchecked).T)
 
 
+def plan_episode(ladder: TaskMoves) -> tuple[LazyLadder, list[int], float]:
+    """The optimal branch sequence of a whole episode from its start, over the lazily
+    priced ladder, and its return summed forward as the env sums its rewards (replaying
+    the plan through ``step`` pays exactly that). Returns the lazy ladder too (its checks
+    serve later plans of the same episode)."""
+    lazy = LazyLadder(ladder)
+    _, plan = lazy.plan(0, ladder.task.n_waypoints, 0)
+    reward, _ = lazy.prices()
+    total, row = 0.0, 0
+    for i, branch in enumerate(plan):
+        total += float(reward[i, row, branch])
+        row = branch
+    return lazy, plan, total
+
+
 class DPOracle(Baseline):
     """The global optimum of the whole episode, planned at reset with full knowledge.
 
@@ -198,13 +213,10 @@ class DPOracle(Baseline):
     def on_episode(self) -> None:
         env = self.env
         assert env.task is not None and env.ladder is not None  # the env was just reset
-        self.lazy = LazyLadder(env.ladder)
-        _, self.plan = self.lazy.plan(0, env.task.n_waypoints, 0)
-        reward, _ = self.lazy.prices()
-        self.planned_return, row, self._path = 0.0, 0, {}
+        self.lazy, self.plan, self.planned_return = plan_episode(env.ladder)
+        self._path, row = {}, 0
         for i, branch in enumerate(self.plan):
             self._path[(i, row)] = branch
-            self.planned_return += float(reward[i, row, branch])
             row = branch
 
     def choose(self, waypoint: int, mask: np.ndarray) -> int:

@@ -17,7 +17,7 @@ from ikbranch_gym.envs.models.scene_file import base_pose, load_scene_file
 from ikbranch_gym.envs.models.scenes import CLUTTER_SLOTS, ClutterSlots, draw_clutter
 from ikbranch_gym.envs.moves import MovePricer, TaskMoves
 from ikbranch_gym.envs.observations import ObservationBuilder
-from ikbranch_gym.envs.resets import begin_episodes
+from ikbranch_gym.envs.resets import RESET_OPTIONS, begin_episodes
 from ikbranch_gym.envs.seeds import TRAIN_SCENES
 from ikbranch_gym.envs.task_frame import FramedArm, TaskFrame
 from ikbranch_gym.envs.tasks import TASKS, Task
@@ -132,16 +132,28 @@ class IKBranchEnv(gym.Env):
     arm already stands at position 1: its first step only picks that branch, at no cost.
     With ``scene="random_clutter"`` and ``scene_seed=None`` every reset first lays a new
     clutter (its seed drawn from ``np_random`` in ``scene_seeds``, ``info["scene_seed"]``);
-    scenes without clutter ignore ``scene_seed``.
+    scenes without clutter ignore ``scene_seed``. ``reset(options={"scene_seed": s,
+    "task_seed": t})`` (either or both) lays clutter ``s`` instead of drawing one (ids that
+    draw one per episode only), and draws the task from a generator seeded with ``t``
+    (``info["task_seed"]``); ``np_random`` makes neither draw then. Any other key, or a
+    value that is not an integer ≥ 0, is a ``ValueError``. With ``optimal_return=True``
+    the DP oracle plans every episode at reset (its lazy path checks are the env's own,
+    cached: nothing the episode observes or pays changes) and every ``info`` of the
+    episode carries ``optimal_return``, the best return any masked action sequence gets,
+    for regret curves.
 
     ## Episode end
     Terminates after the last waypoint, on an invalid branch, and on a colliding path when
     ``terminate_on_collision``. Episodes never run longer than ``N`` steps (no truncation).
+    The ids register no ``max_episode_steps``: the env ends every episode itself, and a
+    ``TimeLimit`` of ``N`` would mark that last step truncated as well, and would cut short
+    the episodes of an ``n_waypoints`` passed to ``gym.make``; ``unwrapped.n_waypoints``
+    is the length.
     ``info["is_success"]`` at the end: every waypoint reached, no collision, no invalid
     branch.
 
     ## Arguments
-    ``gym.make("IKBranch/Anthropomorphic-v1", **kwargs)``; every argument is JSON-able.
+    ``gym.make("IKBranch/Anthropomorphic-v2", **kwargs)``; every argument is JSON-able.
 
     ===================== ======================= ===========================================
     argument              default                 meaning
@@ -173,9 +185,14 @@ class IKBranchEnv(gym.Env):
     render_mode           None                    None or "rgb_array"
     width                 480                     rendered frame width (px)
     height                360                     rendered frame height (px)
+    optimal_return        False                   ``info["optimal_return"]``: DP's optimum
     ===================== ======================= ===========================================
 
     ## Version history
+    - Same ids, same behaviour (2026-12-03): ``reset(options=…)`` takes ``scene_seed`` and
+      ``task_seed`` (options were ignored before; any other key is now an error); the
+      opt-in ``optimal_return`` argument; the package is imported as ``ikbranch_gym``
+      (``gym.make("ikbranch_gym:IKBranch/…")`` needs no import of its own).
     - Same ids, same behaviour (2026-12-03): every ``info`` carries ``action_mask``; every
       id registers a natively batched vector env (``vector_entry_point``); collision
       checks prove contacts from inner shapes as well as freedom from bounds, so MuJoCo is
@@ -242,6 +259,7 @@ class IKBranchEnv(gym.Env):
         render_mode: str | None = None,
         width: int = 480,
         height: int = 360,
+        optimal_return: bool = False,
     ) -> None:
         self._kwargs = {
             key: value for key, value in locals().items() if key not in ("self", "__class__")
@@ -293,6 +311,10 @@ class IKBranchEnv(gym.Env):
         self.task: Task | None = None
         #: The current task's ladder (candidates and prices), None before ``reset``.
         self.ladder: TaskMoves | None = None
+        #: With ``optimal_return=True``: the DP oracle's return of the current episode
+        #: (``info["optimal_return"]``); else None.
+        self.optimal_return: float | None = None
+        self._plans_optimum = bool(optimal_return)
 
     # -------------------------------------------------------------- construction steps
     def _place_arm(self, scene: str, scene_file: str | None,
@@ -440,25 +462,43 @@ class IKBranchEnv(gym.Env):
 
     # ---------------------------------------------------------------------------- API
     def reset(self, *, seed: int | None = None, options: dict | None = None):
-        info = self._new_episode(seed)
+        """Begin an episode; ``options`` may hold ``scene_seed`` (lay that clutter: ids that
+        draw one per episode) and ``task_seed`` (draw the task from a generator seeded
+        with it); the env's ``np_random`` then makes neither of those draws."""
+        info = begin_episodes([self], [seed], self.checker._filter,
+                              np.zeros(1, dtype=np.int64), [self.reset_options(options)])[0]
         self._episode.survey(self._row)
         info["action_mask"] = self._episode.masks(self._row)[0]
         return self._episode.observation[0].copy(), info
 
-    def _new_episode(self, seed: int | None) -> dict:
-        """Everything of ``reset`` but the first observation (a vector env assembles those
-        of its sub-envs together): seed, lay the clutter, draw the task, solve its ladder
-        and begin the episode (``envs.resets``, for a batch of one). Returns the reset's
-        ``info`` without the action mask."""
-        return begin_episodes([self], [seed], self.checker._filter,
-                              np.zeros(1, dtype=np.int64))[0]
+    def reset_options(self, options: dict | None) -> dict[str, int]:
+        """``options`` of ``reset`` checked: ``ValueError`` for a key other than
+        ``scene_seed`` and ``task_seed``, a value that is not an integer ≥ 0, or a
+        ``scene_seed`` for an env that does not draw its clutter per episode."""
+        if options is None:
+            return {}
+        if not isinstance(options, dict):
+            raise ValueError(f"reset options must be a dict, got {type(options).__name__}")
+        unknown = sorted(set(options) - set(RESET_OPTIONS))
+        if unknown:
+            raise ValueError(f"unknown reset options {unknown}; the env takes "
+                             f"{', '.join(RESET_OPTIONS)}")
+        checked = {key: _integer(value, key, 0) for key, value in options.items()
+                   if value is not None}
+        if "scene_seed" in checked and self._clutter is None:
+            raise ValueError("reset option scene_seed needs an env that lays a clutter per "
+                             "episode (scene='random_clutter', scene_seed=None)")
+        return checked
 
-    def _reset_scene(self, seed: int | None) -> dict:
+    def _reset_scene(self, seed: int | None, scene_seed: int | None = None) -> dict:
         """A reset's first part: seed the env's generator and lay a new clutter where the
-        env draws one per episode. Returns the reset's ``info`` so far."""
+        env draws one per episode (``scene_seed``'s, else one drawn from ``np_random``).
+        Returns the reset's ``info`` so far."""
         super().reset(seed=seed)
         if self._clutter is not None:
-            self._lay_scene(int(self.np_random.integers(*self.scene_seeds)))
+            if scene_seed is None:
+                scene_seed = int(self.np_random.integers(*self.scene_seeds))
+            self._lay_scene(scene_seed)
         info: dict[str, Any] = {"waypoint": 0}
         if self._clutter is not None:
             info["scene_seed"] = self.scene_seed
@@ -494,6 +534,12 @@ class IKBranchEnv(gym.Env):
     def _start(self, task: Task, ladder: TaskMoves) -> None:
         self.task, self.ladder = task, ladder
         self._episode.begin(0, ladder, self._observations.templates(ladder))
+        if self._plans_optimum:
+            # The planner checks paths through this env's own pricer: exact verdicts,
+            # cached, so what the episode observes and pays is unchanged.
+            from ikbranch_gym.agents.dp import plan_episode
+
+            self.optimal_return = plan_episode(ladder)[2]
 
     def action_masks(self) -> np.ndarray:
         """(K,) bool: the branches of the next waypoint that exist and lie inside the
@@ -512,6 +558,8 @@ class IKBranchEnv(gym.Env):
             raise ValueError(f"action must be a branch index in [0, {self.arm.n_branches})")
         steps = self._episode.advance(self._row, np.array([branch]))
         info = steps.info(0)
+        if self.optimal_return is not None:
+            info["optimal_return"] = self.optimal_return
         self._episode.survey(self._row)
         info["action_mask"] = self._episode.masks(self._row)[0]
         return (self._episode.observation[0].copy(), float(steps.reward[0]),

@@ -5,7 +5,8 @@ A reset seeds the env, lays its clutter, draws its task, solves every waypoint's
 checks every candidate, then begins the episode. The single env resets a batch of one; a
 vector env the sub-envs whose episodes ended, together:
 
-- per env: the seed, the clutter (its own scene) and the task — the random task's chain
+- per env: the seed, the clutter (its own scene, or the one ``reset`` options name) and
+  the task (from the env's generator, or from ``task_seed``'s) — the random task's chain
   of configurations in one compiled call each (``envs.random_chain``), other tasks from
   their generators;
 - at once: the waypoint poses of every random chain (one ``arm.fk`` call), the IK of
@@ -36,14 +37,31 @@ if TYPE_CHECKING:
     from ikbranch_gym.envs.ik_branch_env import IKBranchEnv
 
 
+#: What ``reset(options=…)`` of a single env may name (a vector env: N of each).
+RESET_OPTIONS = ("scene_seed", "task_seed")
+
+
 def begin_episodes(envs: Sequence[IKBranchEnv], seeds: Sequence[int | None],
-                   checks: CompiledFilter | FilterStack,
-                   scenes: np.ndarray) -> list[dict[str, Any]]:
-    """Reset ``envs`` (env i with ``seeds[i]``; ``scenes[i]`` its scene in ``checks``, the
-    filter of the lone env or the vector env's stack): each begins a new episode. Returns
-    each reset's ``info`` (without the action mask)."""
-    infos = [env._reset_scene(seed) for env, seed in zip(envs, seeds, strict=True)]
-    tasks = _draw_tasks(envs)
+                   checks: CompiledFilter | FilterStack, scenes: np.ndarray,
+                   options: Sequence[dict[str, int]] | None = None) -> list[dict[str, Any]]:
+    """Reset ``envs`` (env i with ``seeds[i]`` and the checked ``options[i]``, a dict of
+    :data:`RESET_OPTIONS`; ``scenes[i]`` its scene in ``checks``, the filter of the lone
+    env or the vector env's stack): each begins a new episode. Returns each reset's
+    ``info`` (without the action mask).
+
+    ``scene_seed`` lays that clutter instead of drawing one, ``task_seed`` draws the task
+    from a generator of its own seeded with it: the env's ``np_random`` makes neither draw
+    (the option replaces it)."""
+    chosen = [{} for _ in envs] if options is None else list(options)
+    infos = [env._reset_scene(seed, option.get("scene_seed"))
+             for env, seed, option in zip(envs, seeds, chosen, strict=True)]
+    rngs = [env.np_random if option.get("task_seed") is None
+            else np.random.default_rng(option["task_seed"])
+            for env, option in zip(envs, chosen, strict=True)]
+    for info, option in zip(infos, chosen, strict=True):
+        if option.get("task_seed") is not None:
+            info["task_seed"] = option["task_seed"]
+    tasks = _draw_tasks(envs, rngs)
     solved = [i for i, env in enumerate(envs) if not getattr(env._generator, "finite_poses",
                                                              False)]
     ladders: list[TaskMoves | None] = [None] * len(envs)
@@ -54,22 +72,24 @@ def begin_episodes(envs: Sequence[IKBranchEnv], seeds: Sequence[int | None],
     for i, env in enumerate(envs):
         ladder = ladders[i] if ladders[i] is not None else env.pricer.task(tasks[i])
         env._start(tasks[i], ladder)
+        if env.optimal_return is not None:
+            infos[i]["optimal_return"] = env.optimal_return
     return infos
 
 
-def _draw_tasks(envs: Sequence[IKBranchEnv]) -> list[Task]:
-    """Each env's task, in the cell frame turned into the fk frame: the random task's chains
-    drawn one env at a time (each from its own generator), their poses in one call."""
+def _draw_tasks(envs: Sequence[IKBranchEnv], rngs: Sequence[np.random.Generator]) -> list[Task]:
+    """Each env's task (env i's from ``rngs[i]``), in the cell frame turned into the fk
+    frame: the random task's chains drawn one env at a time, their poses in one call."""
     tasks: list[Task | None] = [None] * len(envs)
     chained = [i for i, env in enumerate(envs) if env._generator is random_reachable]
     for i, env in enumerate(envs):
         if i not in chained:
             pricer = env.pricer
-            tasks[i] = env._generator(env._task_arm, env.np_random, env.n_waypoints,
+            tasks[i] = env._generator(env._task_arm, rngs[i], env.n_waypoints,
                                       pricer.is_free, pricer.is_path_free)
     if chained:
         chains = np.array([
-            random_chain_configurations(envs[i]._task_arm, envs[i].np_random,
+            random_chain_configurations(envs[i]._task_arm, rngs[i],
                                         envs[i].n_waypoints, envs[i].checker._filter,
                                         envs[i].checker.lever, envs[i].checker.resolution)
             for i in chained])

@@ -12,7 +12,7 @@ from gymnasium.vector.utils import batch_space
 from ikbranch_gym.envs.episodes import EpisodeBatch, Steps
 from ikbranch_gym.envs.ik_branch_env import IKBranchEnv
 from ikbranch_gym.envs.models.filter import FilterStack
-from ikbranch_gym.envs.resets import begin_episodes
+from ikbranch_gym.envs.resets import RESET_OPTIONS, begin_episodes
 
 
 class IKBranchVectorEnv(VectorEnv):
@@ -102,7 +102,9 @@ class IKBranchVectorEnv(VectorEnv):
               options: dict[str, Any] | None = None):
         """Reset every sub-env (``seed=s``: sub-env i with ``s + i``; a list: one seed
         each), or with ``options={"reset_mask": mask}`` only those where ``mask`` (N,)
-        bool is True (the others keep their state)."""
+        bool is True (the others keep their state). ``options`` may also hold
+        ``scene_seed`` and ``task_seed``, N entries each (an int, or None: drawn as
+        usual), sub-env i reset as the single env with ``options={key: entries[i]}``."""
         seeds = self._seeds(seed)
         if isinstance(seed, numbers.Integral):  # the vector env's own generator, as Gymnasium's
             super().reset(seed=int(seed))
@@ -110,7 +112,8 @@ class IKBranchVectorEnv(VectorEnv):
         rows = self._rows
         if "reset_mask" in options:
             rows = np.flatnonzero(self._reset_mask(options.pop("reset_mask")))
-        infos = self._begin(rows, [seeds[i] for i in rows])
+        chosen = self._reset_options(options)
+        infos = self._begin(rows, [seeds[i] for i in rows], [chosen[i] for i in rows])
         self._ended[rows] = False
         self._episodes.survey(rows)
         self._started = True
@@ -140,6 +143,7 @@ class IKBranchVectorEnv(VectorEnv):
             infos = self._begin(resetting, [None] * len(resetting))
         steps = self._episodes.advance(stepping, actions[stepping])
         rewards[stepping], terminated[stepping] = steps.reward, steps.terminated
+        optimal = self._optimal_returns()  # of the episodes just stepped
         done = stepping[steps.terminated]
         if self.autoreset_mode == AutoresetMode.SAME_STEP and len(done):
             self._episodes.survey(done)  # their last observation
@@ -147,16 +151,17 @@ class IKBranchVectorEnv(VectorEnv):
             final_obs[done] = list(self._episodes.observation[done].copy())
             masks = self._episodes.masks(done)
             final_info = _step_infos(n, stepping, steps, masks_of=(done, masks),
-                                     only=steps.terminated)
+                                     only=steps.terminated, optimal=optimal)
             infos = self._begin(done, [None] * len(done))
             infos["final_obs"], infos["_final_obs"] = final_obs, _mask(n, done)
             infos["final_info"], infos["_final_info"] = final_info, _mask(n, done)
             going = stepping[~steps.terminated]
-            _merge(infos, _step_infos(n, stepping, steps, only=~steps.terminated))
+            _merge(infos, _step_infos(n, stepping, steps, only=~steps.terminated,
+                                      optimal=optimal))
             self._ended[done] = False
             surveyed = np.concatenate([going, done])
         else:
-            _merge(infos, _step_infos(n, stepping, steps))
+            _merge(infos, _step_infos(n, stepping, steps, optimal=optimal))
             self._ended[resetting] = False
             self._ended[done] = True
             surveyed = self._rows if len(resetting) else stepping
@@ -165,6 +170,12 @@ class IKBranchVectorEnv(VectorEnv):
         _put(infos, "action_mask", self._rows, masks)
         truncated = np.zeros(n, dtype=bool)
         return self._episodes.observation.copy(), rewards, terminated, truncated, infos
+
+    def _optimal_returns(self) -> np.ndarray | None:
+        """(N,) each sub-env's ``optimal_return`` (``optimal_return=True``), else None."""
+        if self.envs[0].optimal_return is None:
+            return None
+        return np.array([env.optimal_return for env in self.envs])
 
     def action_masks(self) -> np.ndarray:
         """(N, K) bool: each sub-env's valid branches now (``info["action_mask"]``)."""
@@ -216,6 +227,26 @@ class IKBranchVectorEnv(VectorEnv):
                              f"{len(seeds)}")
         return seeds
 
+    def _reset_options(self, options: dict[str, Any]) -> list[dict[str, int]]:
+        """Each sub-env's checked ``reset`` options (``IKBranchEnv.reset_options``) from
+        ``options``' N entries per key."""
+        unknown = sorted(set(options) - set(RESET_OPTIONS))
+        if unknown:
+            raise ValueError(f"unknown reset options {unknown}; the vector env takes "
+                             f"reset_mask, {', '.join(RESET_OPTIONS)}")
+        per_env: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
+        for key, entries in options.items():
+            if entries is None:
+                continue
+            if isinstance(entries, str | bytes) or not hasattr(entries, "__len__") or len(
+                    entries) != self.num_envs:
+                raise ValueError(f"reset option {key} must hold {self.num_envs} entries (one "
+                                 f"per sub-env, None where drawn), got {entries!r}")
+            for row, entry in enumerate(entries):
+                per_env[row][key] = entry
+        return [env.reset_options(option) for env, option in zip(self.envs, per_env,
+                                                                  strict=True)]
+
     def _reset_mask(self, mask) -> np.ndarray:
         if not isinstance(mask, np.ndarray):
             raise TypeError(f"reset_mask must be a numpy array, got {type(mask).__name__}")
@@ -255,13 +286,14 @@ class IKBranchVectorEnv(VectorEnv):
                                  f"mask (valid branches {np.flatnonzero(masks[bad[0]]).tolist()})")
         return actions
 
-    def _begin(self, rows: np.ndarray, seeds: list[int | None]) -> dict[str, Any]:
-        """New episodes in sub-envs ``rows`` (each with its seed): their batched reset infos
-        (without the masks)."""
+    def _begin(self, rows: np.ndarray, seeds: list[int | None],
+               options: list[dict[str, int]] | None = None) -> dict[str, Any]:
+        """New episodes in sub-envs ``rows`` (each with its seed and checked reset
+        options): their batched reset infos (without the masks)."""
         infos: dict[str, Any] = {}
         n = self.num_envs
         begun = begin_episodes([self.envs[row] for row in rows.tolist()], seeds, self._stack,
-                               rows)
+                               rows, options)
         for row, info in zip(rows.tolist(), begun, strict=True):
             for key, value in info.items():
                 _put(infos, key, np.array([row]), np.array([value]), n=n)
@@ -315,10 +347,11 @@ def _merge(infos: dict[str, Any], more: dict[str, Any]) -> None:
 
 
 def _step_infos(n: int, rows: np.ndarray, steps: Steps, masks_of=None,
-                only: np.ndarray | None = None) -> dict[str, Any]:
+                only: np.ndarray | None = None,
+                optimal: np.ndarray | None = None) -> dict[str, Any]:
     """The batched step infos of ``rows`` (those with ``only``), as each sub-env's
     ``IKBranchEnv.step`` info batched by ``SyncVectorEnv``; ``masks_of`` (rows, masks)
-    adds their action masks."""
+    adds their action masks, ``optimal`` (N,) their episodes' optimal returns."""
     pick = slice(None) if only is None else only
     picked = rows[pick]
     infos: dict[str, Any] = {}
@@ -332,6 +365,8 @@ def _step_infos(n: int, rows: np.ndarray, steps: Steps, masks_of=None,
     ended = steps.terminated[pick]
     if ended.any():
         _put(infos, "is_success", picked[ended], steps.success[pick][ended], n=n)
+    if optimal is not None:
+        _put(infos, "optimal_return", picked, optimal[picked], n=n)
     if masks_of is not None:
         _put(infos, "action_mask", masks_of[0], masks_of[1], n=n)
     return infos
