@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import numbers
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, cast
 
 import gymnasium as gym
 import numpy as np
@@ -11,8 +11,9 @@ from gymnasium import spaces
 
 from ikbranch_gym.envs.costs import TransitionCost
 from ikbranch_gym.envs.episodes import EpisodeBatch, new_scene_token
-from ikbranch_gym.envs.kinematics import ARM_NAMES, make_arm
+from ikbranch_gym.envs.kinematics import ARM_NAMES, Arm, make_arm
 from ikbranch_gym.envs.models import SCENES, CollisionChecker, build_arm_model
+from ikbranch_gym.envs.models.filter import CompiledFilter
 from ikbranch_gym.envs.models.scene_file import base_pose, load_scene_file
 from ikbranch_gym.envs.models.scenes import CLUTTER_SLOTS, ClutterSlots, draw_clutter
 from ikbranch_gym.envs.moves import MovePricer, TaskMoves
@@ -25,6 +26,9 @@ from ikbranch_gym.envs.tasks.file_task import FileTask
 from ikbranch_gym.envs.tasks.waypoint_file import read_waypoints
 from ikbranch_gym.envs.tools import Tool
 
+if TYPE_CHECKING:
+    from ikbranch_gym.envs.render import SceneRenderer
+
 #: ``scene_options`` placing the arm's base in the cell (m; unit quaternion or rpy, rad).
 BASE_KEYS = ("base_pos", "base_quat", "base_rpy")
 #: The ``scene_options`` each scene takes.
@@ -34,7 +38,7 @@ SCENE_OPTIONS: dict[str, tuple[str, ...]] = {
 }
 
 
-def _integer(value, name: str, minimum: int) -> int:
+def _integer(value: object, name: str, minimum: int) -> int:
     """``value`` as an int (numpy integers too), ``ValueError`` unless an integer >= minimum."""
     if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < minimum:
         raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
@@ -228,7 +232,8 @@ class IKBranchEnv(gym.Env):
     - v0: initial release.
     """
 
-    metadata: ClassVar[dict] = {"render_modes": ["rgb_array"], "render_fps": 4}
+    # Gymnasium's Env declares metadata a plain attribute (no ClassVar), as here.
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 4}  # noqa: RUF012
 
     def __init__(
         self,
@@ -301,10 +306,10 @@ class IKBranchEnv(gym.Env):
             -1.0, 1.0, shape=(self._observations.size,), dtype=np.float32
         )
         self.action_space = spaces.Discrete(self.arm.n_branches)
-        self._renderer = None
+        self._renderer: SceneRenderer | None = None
         #: The episode's state, stepped as a vector env steps its rows (a batch of one).
         self._episode = EpisodeBatch(1, self.n_waypoints, self.pricer, self._observations,
-                                     checker._filter, scenes=np.zeros(1, dtype=np.int64))
+                                     self.compiled_filter, scenes=np.zeros(1, dtype=np.int64))
         self._episode.q[0] = self.arm.home
         self._row = np.zeros(1, dtype=np.int64)
 
@@ -341,16 +346,20 @@ class IKBranchEnv(gym.Env):
         #: Task poses are in the cell, of the tool's TCP: this maps them to the fk frame.
         self.task_frame = TaskFrame(cell_from_base,
                                     None if self.tool is None else self.tool.tcp)
-        self._task_arm = (self.arm if self.task_frame.identity
-                          else FramedArm(self.arm, self.task_frame))
+        # A FramedArm answers everything an Arm does (fk and ik in the task frame, the
+        # rest the arm's own), so tasks and chains take it as the arm.
+        self._task_arm: Arm = (self.arm if self.task_frame.identity
+                               else cast(Arm, FramedArm(self.arm, self.task_frame)))
         if scene == "file":
             return {"scene_file": scene_file, **options}
         return options if scene == "milling_cell" else {}
 
-    def _task_generator(self, task: str, task_file: str | None, task_start, task_points_abc):
+    def _task_generator(self, task: str, task_file: str | None,
+                        task_start: list[float] | None,
+                        task_points_abc: list[float] | None) -> Any:
         if (task == "file") != (task_file is not None):
             raise ValueError("task='file' and task_file=PATH go together")
-        if task == "file":
+        if task_file is not None:
             return self._file_task(task_file, task_start, task_points_abc)
         if task_start is not None or task_points_abc is not None:
             raise ValueError("task_start and task_points_abc are for task='file'")
@@ -379,7 +388,8 @@ class IKBranchEnv(gym.Env):
         self.scene_seeds = (int(seeds[0]), int(seeds[1]))
         return scene == "random_clutter" and scene_seed is None
 
-    def _file_task(self, path: str, start, abc) -> FileTask:
+    def _file_task(self, path: str, start: list[float] | None,
+                   abc: list[float] | None) -> FileTask:
         """The task of a waypoint file: poses in the cell frame when a scene file gives one
         (else the arm's base frame), of the tool's TCP when a tool is given (else of the fk
         frame). ``ValueError`` naming every row no branch reaches, and why."""
@@ -387,13 +397,14 @@ class IKBranchEnv(gym.Env):
         a, b, c = (None, None, None) if abc is None else abc
         waypoints = read_waypoints(path, a=a, b=b, c=c)
         poses = waypoints.poses
+        start_q = None
         if start is not None:
-            start = np.asarray(start, dtype=np.float64)
-            if start.shape != (self.arm.dof,) or not np.isfinite(start).all():
+            start_q = np.asarray(start, dtype=np.float64)
+            if start_q.shape != (self.arm.dof,) or not np.isfinite(start_q).all():
                 raise ValueError(f"task_start must be {self.arm.dof} finite joint values")
-            if not self.arm.within_limits(start):
-                raise ValueError(f"task_start {start.tolist()} lies outside the joint limits")
-        task = FileTask(waypoints, poses, start)
+            if not self.arm.within_limits(start_q):
+                raise ValueError(f"task_start {start_q.tolist()} lies outside the joint limits")
+        task = FileTask(waypoints, poses, start_q)
         problems = task.unreachable(self._task_arm)
         if problems:
             raise ValueError(f"{len(problems)} of {len(poses)} waypoints cannot be reached "
@@ -408,6 +419,14 @@ class IKBranchEnv(gym.Env):
     @property
     def checker(self) -> CollisionChecker:
         return self.pricer.checker
+
+    @property
+    def compiled_filter(self) -> CompiledFilter:
+        """The checker's compiled filter, which the episode's kernels call."""
+        checks = self.checker._filter
+        if checks is None:  # the env builds its checker with the compiled backend
+            raise RuntimeError("the env's collision checker has no compiled filter")
+        return checks
 
     @property
     def collision_penalty(self) -> float:
@@ -461,11 +480,12 @@ class IKBranchEnv(gym.Env):
         return None if self.ladder is None else self.ladder.endpoint_collision
 
     # ---------------------------------------------------------------------------- API
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         """Begin an episode; ``options`` may hold ``scene_seed`` (lay that clutter: ids that
         draw one per episode) and ``task_seed`` (draw the task from a generator seeded
         with it); the env's ``np_random`` then makes neither of those draws."""
-        info = begin_episodes([self], [seed], self.checker._filter,
+        info = begin_episodes([self], [seed], self.compiled_filter,
                               np.zeros(1, dtype=np.int64), [self.reset_options(options)])[0]
         self._episode.survey(self._row)
         info["action_mask"] = self._episode.masks(self._row)[0]
@@ -518,6 +538,8 @@ class IKBranchEnv(gym.Env):
         if seed == self.scene_seed:
             return
         clutter, checker = self._clutter, self.checker
+        if clutter is None:
+            raise RuntimeError("only an env that draws its clutter per episode lays scenes")
         obstacles = draw_clutter(self.arm, seed, clutter.base, CLUTTER_SLOTS)
         clutter.lay(obstacles, self.model, checker.model)
         checker.refresh_static(clutter.geoms)
@@ -548,7 +570,7 @@ class IKBranchEnv(gym.Env):
             raise RuntimeError("call reset() before action_masks()")
         return self._episode.masks(self._row)[0]
 
-    def step(self, action):
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         if self.task is None:
             raise RuntimeError("call reset() before step()")
         if self.index >= self.task.n_waypoints:
@@ -575,11 +597,11 @@ class IKBranchEnv(gym.Env):
         what an oracle with full knowledge of the task plans over (``self.ladder`` prices
         moves lazily for planners that need fewer checks).
         """
-        if self.task is None:
+        if self.ladder is None:
             raise RuntimeError("call reset() before edge_rewards()")
         return self.ladder.edges(waypoint)
 
-    def render(self):
+    def render(self) -> np.ndarray | None:
         if self.render_mode != "rgb_array":
             return None
         if self._renderer is None:
@@ -616,7 +638,7 @@ class IKBranchEnv(gym.Env):
         }
 
     def __setstate__(self, state: dict) -> None:
-        self.__init__(**state["kwargs"])
+        IKBranchEnv.__init__(self, **state["kwargs"])
         if state.get("scene_seed") is not None:
             self._lay_scene(state["scene_seed"])
         if state["rng"] is not None:

@@ -70,7 +70,8 @@ def begin_episodes(envs: Sequence[IKBranchEnv], seeds: Sequence[int | None],
                                             checks, scenes[solved]), strict=True):
             ladders[i] = ladder
     for i, env in enumerate(envs):
-        ladder = ladders[i] if ladders[i] is not None else env.pricer.task(tasks[i])
+        solved_ladder = ladders[i]
+        ladder = solved_ladder if solved_ladder is not None else env.pricer.task(tasks[i])
         env._start(tasks[i], ladder)
         if env.optimal_return is not None:
             infos[i]["optimal_return"] = env.optimal_return
@@ -90,7 +91,7 @@ def _draw_tasks(envs: Sequence[IKBranchEnv], rngs: Sequence[np.random.Generator]
     if chained:
         chains = np.array([
             random_chain_configurations(envs[i]._task_arm, rngs[i],
-                                        envs[i].n_waypoints, envs[i].checker._filter,
+                                        envs[i].n_waypoints, envs[i].compiled_filter,
                                         envs[i].checker.lever, envs[i].checker.resolution)
             for i in chained])
         count, length, dof = chains.shape
@@ -98,7 +99,9 @@ def _draw_tasks(envs: Sequence[IKBranchEnv], rngs: Sequence[np.random.Generator]
         poses = poses.reshape(count, length - 1, 4, 4)
         for j, i in enumerate(chained):
             tasks[i] = Task(start=chains[j, 0], poses=poses[j])
-    return [envs[i]._in_fk_frame(task) for i, task in enumerate(tasks)]
+    drawn = [task for task in tasks if task is not None]
+    assert len(drawn) == len(envs)  # every env's task, from its generator or its chain
+    return [env._in_fk_frame(task) for env, task in zip(envs, drawn, strict=True)]
 
 
 def _solve(envs: Sequence[IKBranchEnv], tasks: Sequence[Task],
@@ -111,19 +114,23 @@ def _solve(envs: Sequence[IKBranchEnv], tasks: Sequence[Task],
     candidates, valid = arm.ik(poses)
     pose_scenes = np.repeat(np.asarray(scenes, dtype=np.int64), n)
     if isinstance(checks, FilterStack):
-        def decide(rows, where):
-            out, how = checks.collide_how(where, rows)
+        stack = checks
+
+        def decide(rows: np.ndarray, where: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            out, how = stack.collide_how(where, rows)
             return out > 0, how != BY_MUJOCO
 
-        def recheck(rows, where):
-            return checks.collide(where, rows) > 0
+        def recheck(rows: np.ndarray, where: np.ndarray) -> np.ndarray:
+            return stack.collide(where, rows) > 0
     else:  # one env's own filter: every pose in its one scene
-        def decide(rows, where):
-            out, how = checks.collide_how(rows)
+        own = checks
+
+        def decide(rows: np.ndarray, where: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            out, how = own.collide_how(rows)
             return out > 0, how != BY_MUJOCO
 
-        def recheck(rows, where):
-            return checks.collide(rows) > 0
+        def recheck(rows: np.ndarray, where: np.ndarray) -> np.ndarray:
+            return own.collide(rows) > 0
     endpoint = endpoint_collision(arm, candidates, valid, decide, recheck, pose_scenes)
     ladders = []
     for i, (env, task) in enumerate(zip(envs, tasks, strict=True)):

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import numbers
-from typing import Any, ClassVar
+from typing import Any
 
 import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
@@ -65,9 +65,19 @@ class IKBranchVectorEnv(VectorEnv):
     argument of ``IKBranchEnv`` (its docstring), the same for all sub-envs.
     """
 
-    metadata: ClassVar[dict] = {
+    # Gymnasium's VectorEnv declares metadata a plain attribute (no ClassVar), as here.
+    metadata: dict[str, Any] = {  # noqa: RUF012
         **IKBranchEnv.metadata, "autoreset_mode": AutoresetMode.NEXT_STEP,
     }
+    envs: list[IKBranchEnv]
+    autoreset_mode: AutoresetMode
+    enforce_masks: bool
+    n_branches: int
+    _stack: FilterStack
+    _episodes: EpisodeBatch
+    _rows: np.ndarray
+    _ended: np.ndarray
+    _started: bool
 
     def __init__(self, num_envs: int = 1, autoreset_mode: str | AutoresetMode =
                  AutoresetMode.NEXT_STEP, enforce_masks: bool = False, **kwargs: Any) -> None:
@@ -88,18 +98,18 @@ class IKBranchVectorEnv(VectorEnv):
         self.observation_layout = first.observation_layout
         self.n_branches = first.arm.n_branches
         # One kernel call checks the paths of every sub-env, each in its own scene.
-        self._stack = FilterStack([env.checker._filter for env in self.envs])
+        self._stack = FilterStack([env.compiled_filter for env in self.envs])
         self._episodes = EpisodeBatch(self.num_envs, first.n_waypoints, first.pricer,
                                       first._observations, self._stack)
         for row, env in enumerate(self.envs):  # each sub-env runs its episode in its row
-            env._episode = self._episodes.view(row, env.checker._filter)
+            env._episode = self._episodes.view(row, env.compiled_filter)
         self._rows = np.arange(self.num_envs)
         self._ended = np.zeros(self.num_envs, dtype=bool)
         self._started = False
 
     # ---------------------------------------------------------------------------- API
     def reset(self, *, seed: int | list[int | None] | None = None,
-              options: dict[str, Any] | None = None):
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         """Reset every sub-env (``seed=s``: sub-env i with ``s + i``; a list: one seed
         each), or with ``options={"reset_mask": mask}`` only those where ``mask`` (N,)
         bool is True (the others keep their state). ``options`` may also hold
@@ -121,7 +131,8 @@ class IKBranchVectorEnv(VectorEnv):
         _put(infos, "action_mask", rows, masks[rows])
         return self._episodes.observation.copy(), infos
 
-    def step(self, actions):
+    def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                          dict[str, Any]]:
         """Advance every sub-env by its action (see the class docstring)."""
         if not self._started:
             raise RuntimeError("call reset() before step()")
@@ -216,7 +227,8 @@ class IKBranchVectorEnv(VectorEnv):
             env.close()
 
     # ----------------------------------------------------------------------- helpers
-    def _seeds(self, seed) -> list[int | None]:
+    def _seeds(self, seed: Any) -> list[int | None]:
+        """One seed per sub-env from ``reset``'s: None, an int (numpy's too) or N seeds."""
         if seed is None:
             return [None] * self.num_envs
         if isinstance(seed, numbers.Integral) and not isinstance(seed, bool):
@@ -247,7 +259,7 @@ class IKBranchVectorEnv(VectorEnv):
         return [env.reset_options(option) for env, option in zip(self.envs, per_env,
                                                                   strict=True)]
 
-    def _reset_mask(self, mask) -> np.ndarray:
+    def _reset_mask(self, mask: object) -> np.ndarray:
         if not isinstance(mask, np.ndarray):
             raise TypeError(f"reset_mask must be a numpy array, got {type(mask).__name__}")
         if mask.shape != (self.num_envs,):
@@ -258,7 +270,7 @@ class IKBranchVectorEnv(VectorEnv):
             raise ValueError("reset_mask must mark at least one sub-env to reset")
         return mask
 
-    def _check_actions(self, actions) -> np.ndarray:
+    def _check_actions(self, actions: Any) -> np.ndarray:
         """``actions`` as (N,) int64, ``ValueError`` naming what is wrong: the shape, a
         non-integer dtype, a branch outside [0, K) (or, with ``enforce_masks``, outside its
         sub-env's mask)."""
@@ -346,7 +358,8 @@ def _merge(infos: dict[str, Any], more: dict[str, Any]) -> None:
             infos[key], infos["_" + key] = value, mask
 
 
-def _step_infos(n: int, rows: np.ndarray, steps: Steps, masks_of=None,
+def _step_infos(n: int, rows: np.ndarray, steps: Steps,
+                masks_of: tuple[np.ndarray, np.ndarray] | None = None,
                 only: np.ndarray | None = None,
                 optimal: np.ndarray | None = None) -> dict[str, Any]:
     """The batched step infos of ``rows`` (those with ``only``), as each sub-env's

@@ -19,6 +19,7 @@ import functools
 import platform
 import shlex
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
@@ -27,6 +28,7 @@ from typing import Any
 import gymnasium as gym
 import torch
 import yaml
+from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import CallbackList
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecNormalize
@@ -106,7 +108,8 @@ def vec_envs(kind: str, env_id: str, env_kwargs: dict[str, Any], n_envs: int,
     return train_env, eval_env
 
 
-def branch_policy(algo: str, factory, overrides: dict[str, Any]) -> tuple[type, dict[str, Any]]:
+def branch_policy(algo: str, factory: Callable[[], gym.Env],
+                  overrides: dict[str, Any]) -> tuple[type, dict[str, Any]]:
     """``policy: BranchPolicy`` in a config: the class for ``algo`` and its policy_kwargs,
     built from the env's observation layout (``agents.branch_policy``)."""
     from ikbranch_gym.agents.branch_policy import (
@@ -148,7 +151,7 @@ def package_versions() -> dict[str, str]:
     return versions
 
 
-def train(run: RunConfig, argv: list[str] | None = None):
+def train(run: RunConfig, argv: list[str] | None = None) -> BaseAlgorithm:
     """Train (or resume) and return the model; everything lands in ``run.run_dir``."""
     check_algorithm(run.algo)
     params = resolve(run)

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Iterable, Sequence
-from typing import Any
+from typing import Any, cast
 
 import gymnasium as gym
 import numpy as np
@@ -34,7 +34,8 @@ def make_native_vec_env(env_id: str, n_envs: int, env_kwargs: dict[str, Any] | N
 
     venv = gym.make_vec(env_id, num_envs=n_envs, vectorization_mode="vector_entry_point",
                         autoreset_mode=AutoresetMode.SAME_STEP, **(env_kwargs or {}))
-    vec_env = NativeVecEnv(venv)
+    # The vector entry point of every id makes an IKBranchVectorEnv.
+    vec_env = NativeVecEnv(cast(IKBranchVectorEnv, venv))
     if seed is not None:
         vec_env.seed(seed)
     return vec_env
