@@ -102,6 +102,7 @@ def warm_up() -> None:
     observation assembly, in single and vector envs. ``make`` runs it
     once before parallel processes (test workers) start, so they load instead of compiling
     the same kernels at once."""
+    from ikbranch_gym.envs.ik_branch_env import IKBranchEnv
     from ikbranch_gym.envs.kinematics import compiled as kinematics
     from ikbranch_gym.envs.models import filter as collision
 
@@ -113,7 +114,10 @@ def warm_up() -> None:
                    "IKBranch/UR5e-v0"):
         env = gym.make(env_id, n_waypoints=2)
         env.reset(seed=0)
-        env.step(int(env.unwrapped.action_masks().argmax()))
+        unwrapped = env.unwrapped
+        # Every id of ENV_SPECS is registered (above) with IKBranchEnv as its entry point.
+        assert isinstance(unwrapped, IKBranchEnv)
+        env.step(int(unwrapped.action_masks().argmax()))
         env.close()
     vec = gym.make_vec("IKBranch/Cartesian-v2", num_envs=2,
                        vectorization_mode="vector_entry_point")

@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ikbranch_gym.envs.kinematics import Arm
 
@@ -42,8 +43,8 @@ class TransitionCost:
         travel_weight: float = 1.0,
         time_weight: float = 0.0,
         prismatic_scale: float = 1.0,
-        joint_weights=None,
-        joint_speeds=None,
+        joint_weights: ArrayLike | None = None,
+        joint_speeds: ArrayLike | None = None,
     ) -> TransitionCost:
         revolute = arm.revolute_mask
         weights = _per_joint(joint_weights, arm.dof, 1.0, "joint_weights")
@@ -60,7 +61,7 @@ class TransitionCost:
             time_weight=_non_negative(time_weight, "time_weight"),
         )
 
-    def travel(self, q0, q1) -> np.ndarray:
+    def travel(self, q0: ArrayLike, q1: ArrayLike) -> np.ndarray:
         """(…,) weighted joint travel, broadcasting q0 and q1 (…, dof).
 
         A sum over the last axis rather than a matrix product: BLAS sums a row in an order
@@ -69,19 +70,19 @@ class TransitionCost:
         """
         return (np.abs(np.asarray(q1) - np.asarray(q0)) * self.weights).sum(axis=-1)
 
-    def time(self, q0, q1) -> np.ndarray:
+    def time(self, q0: ArrayLike, q1: ArrayLike) -> np.ndarray:
         """(…,) move time with every joint at its speed limit, the slowest setting the pace."""
         return np.max(np.abs(np.asarray(q1) - np.asarray(q0)) / self.speeds, axis=-1)
 
 
-def _non_negative(value, name: str) -> float:
+def _non_negative(value: float, name: str) -> float:
     value = float(value)
     if not np.isfinite(value) or value < 0.0:
         raise ValueError(f"{name} must be a finite number >= 0, got {value}")
     return value
 
 
-def _per_joint(values, dof: int, default, name: str) -> np.ndarray:
+def _per_joint(values: ArrayLike | None, dof: int, default: ArrayLike, name: str) -> np.ndarray:
     if values is None:
         return np.broadcast_to(np.asarray(default, dtype=np.float64), (dof,)).copy()
     array = np.asarray(values, dtype=np.float64)

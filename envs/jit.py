@@ -61,9 +61,12 @@ def njit(function: Callable | None = None, **options: Any) -> Any:
         return numba.njit(**options)(function)
     # numba reads the cache location when a function is decorated (NUMBA_CACHE_DIR's
     # setting): set for this decoration only, so other packages keep their own caches.
-    saved = numba.config.CACHE_DIR
-    numba.config.CACHE_DIR = directory
+    # numba.config sets its options at import time from NUMBA_* variables: no stub declares
+    # them.
+    config: Any = numba.config
+    saved = config.CACHE_DIR
+    config.CACHE_DIR = directory
     try:
         return numba.njit(cache=True, **options)(function)
     finally:
-        numba.config.CACHE_DIR = saved
+        config.CACHE_DIR = saved

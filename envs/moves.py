@@ -32,8 +32,10 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import cast, overload
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ikbranch_gym.envs.costs import TransitionCost
 from ikbranch_gym.envs.jit import njit
@@ -136,10 +138,12 @@ class MovePricer:
             self.poses.make_room(len(new))
             cache.update(new)
             rows = [new[key] if row is None else row for key, row in zip(keys, rows, strict=True)]
+        # Every row is a cache hit or was solved just now: none is None.
+        solved = cast(list[tuple[np.ndarray, np.ndarray, np.ndarray]], rows)
         return (
-            np.array([row[0] for row in rows]),
-            np.array([row[1] for row in rows]),
-            np.array([row[2] for row in rows]),
+            np.array([row[0] for row in solved]),
+            np.array([row[1] for row in solved]),
+            np.array([row[2] for row in solved]),
         )
 
     def _endpoint_collision(self, candidates: np.ndarray, valid: np.ndarray) -> np.ndarray:
@@ -175,18 +179,19 @@ class MovePricer:
             prefix = q0.tobytes()
             keys = [prefix + row.tobytes() for row in q1]
 
-            def compute(index):
+            def compute(index: np.ndarray) -> np.ndarray:
                 return self.checker.rows_paths_collide(q0, q1[index])
         else:
             q0 = _finite_rows(q0, "path starts")
             keys = [a.tobytes() + b.tobytes() for a, b in zip(q0, q1, strict=True)]
 
-            def compute(index):
+            def compute(index: np.ndarray) -> np.ndarray:
                 return self.checker.rows_paths_collide(q0[index], q1[index])
         return self._cached(self.paths, keys, compute)
 
     @staticmethod
-    def _cached(cache: _Cache, keys: list[bytes], compute) -> np.ndarray:
+    def _cached(cache: _Cache, keys: list[bytes],
+                compute: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
         entries = cache.entries
         found = [entries.get(key) for key in keys]
         missing = [i for i, value in enumerate(found) if value is None]
@@ -280,9 +285,11 @@ _FLAGS = ("terminal", "collision", "invalid")
 
 
 @njit
-def _price(origins, candidates, valid, waypoints, collision, free_start, n, weights, speeds,
-           travel_weight, time_weight, collision_penalty, invalid_penalty, terminate,
-           max_cost, values, flags):
+def _price(origins: np.ndarray, candidates: np.ndarray, valid: np.ndarray,
+           waypoints: np.ndarray, collision: np.ndarray, free_start: np.ndarray, n: np.ndarray,
+           weights: np.ndarray, speeds: np.ndarray, travel_weight: float, time_weight: float,
+           collision_penalty: float, invalid_penalty: float, terminate: bool,
+           max_cost: float, values: np.ndarray, flags: np.ndarray) -> None:
     """Every term of the moves from ``origins[w, r]`` to ``candidates[w, k]``, the
     candidates of waypoint ``waypoints[w]`` of a task of ``n[w]`` waypoints whose start is
     free when ``free_start[w]`` (see :meth:`TaskMoves.terms`): ``values``
@@ -334,7 +341,8 @@ def _price(origins, candidates, valid, waypoints, collision, free_start, n, weig
 
 
 @njit
-def _onward_travel(here, there, rows, targets, weights, out):
+def _onward_travel(here: np.ndarray, there: np.ndarray, rows: np.ndarray, targets: np.ndarray,
+                   weights: np.ndarray, out: np.ndarray) -> None:
     """``out[l, a, b]`` (L, K, K): per line l the travel from ``here[l, a]`` to
     ``there[l, b]`` where ``rows[l, a]`` and ``targets[l, b]``, summed as :func:`_price`
     sums it (Σ_j w_j|Δq_j| in joint order), +inf elsewhere; ``rows[l, a]`` is cleared
@@ -355,7 +363,8 @@ def _onward_travel(here, there, rows, targets, weights, out):
 
 
 @njit
-def _next_targets(lines, rows, travel, last, columns):
+def _next_targets(lines: np.ndarray, rows: np.ndarray, travel: np.ndarray, last: np.ndarray,
+                  columns: np.ndarray) -> None:
     """Per asking (``lines[i]``, ``rows[i]``): its next target, the cheapest one after
     ``last`` in the order (travel, target index) — the order a stable sort of the row
     gives, found by one scan instead of sorting every row (a K = 256 arm's rows are mostly
@@ -378,7 +387,9 @@ def _next_targets(lines, rows, travel, last, columns):
 
 
 @njit
-def _take_or_try_next(lines, rows, columns, hits, travel, last, out, pending):
+def _take_or_try_next(lines: np.ndarray, rows: np.ndarray, columns: np.ndarray,
+                      hits: np.ndarray, travel: np.ndarray, last: np.ndarray, out: np.ndarray,
+                      pending: np.ndarray) -> None:
     """One round of :func:`least_free_travel`: row ``rows[i]`` of line ``lines[i]`` whose
     path to ``columns[i]`` is free takes that travel; the others remember it as tried and
     move on to their next cheapest target in the next round."""
@@ -429,7 +440,7 @@ def least_free_travel(here: np.ndarray, there: np.ndarray, branches: np.ndarray,
     return out
 
 
-def _finite_rows(q, what: str) -> np.ndarray:
+def _finite_rows(q: ArrayLike, what: str) -> np.ndarray:
     """``q`` as C-contiguous float64 rows (M, dof), ``ValueError`` if any value is NaN/inf."""
     q = np.ascontiguousarray(q, dtype=np.float64)
     if q.ndim != 2 or not np.isfinite(q).all():
@@ -460,7 +471,7 @@ class TaskMoves:
             return np.asarray(self.task.start, dtype=np.float64)[None], np.ones(1, dtype=bool)
         return self.candidates[waypoint - 1], self.valid[waypoint - 1]
 
-    def motion(self, origins: np.ndarray, waypoint) -> tuple[np.ndarray, np.ndarray]:
+    def motion(self, origins: np.ndarray, waypoint: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """``travel`` and ``time`` (…, R, K) of the moves from ``origins`` (…, R, dof) to
         every branch of ``waypoint`` (an int, or an array of the leading shape …);
         invalid branches do not move, and at a free start (waypoint 0) nothing moves: the
@@ -498,7 +509,7 @@ class TaskMoves:
                                                        self.candidates[waypoint][columns])
         return out
 
-    def terms(self, origins: np.ndarray, waypoint,
+    def terms(self, origins: np.ndarray, waypoint: ArrayLike,
               collision: np.ndarray | None = None) -> dict[str, np.ndarray]:
         """Every reward term (…, R, K) of the moves from ``origins`` (…, R, dof) into each
         branch of ``waypoint`` (an int, or an array of the leading shape …), as ``step``
@@ -507,17 +518,19 @@ class TaskMoves:
         (s), ``collision`` and ``invalid``. ``collision`` (…, R, K) gives the collision
         verdicts (a planner's optimistic or known ones); by default they are checked (an
         int waypoint only). The one function that prices a move (:func:`_price`)."""
-        if collision is None:
-            collision = self.collisions(origins, waypoint)
+        if collision is None:  # an int waypoint only (above): collisions checks it
+            collision = self.collisions(origins, cast(int, waypoint))
         values, flags = self._price(origins, waypoint, collision)
         terms = dict(zip(_VALUES, values, strict=True))
         terms.update(zip(_FLAGS, flags, strict=True))
         return terms
 
-    def _price(self, origins: np.ndarray, waypoint, collision: np.ndarray | None):
+    def _price(self, origins: np.ndarray, waypoint: ArrayLike,
+               collision: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
         """:func:`_price` on any leading shape: value and flag blocks (…, R, K) each."""
         waypoint = self._check_waypoint(waypoint)
         k, dof = self.valid.shape[1], self.candidates.shape[2]
+        flat: slice | np.ndarray
         if isinstance(waypoint, int):  # one waypoint, origins (R, dof): views, no copies
             flat = slice(waypoint, waypoint + 1)
             origins = np.ascontiguousarray(origins, dtype=np.float64)[None]
@@ -593,7 +606,11 @@ class TaskMoves:
         travel, _ = self.motion(np.asarray(q, dtype=np.float64)[None], waypoint)
         return np.where(self.valid[waypoint], travel[0], np.nan)
 
-    def _check_waypoint(self, waypoint):
+    @overload
+    def _check_waypoint(self, waypoint: int | np.integer) -> int: ...
+    @overload
+    def _check_waypoint(self, waypoint: ArrayLike) -> int | np.ndarray: ...
+    def _check_waypoint(self, waypoint: ArrayLike) -> int | np.ndarray:
         """``waypoint`` as an int (from any integer) or an integer array, ``ValueError``
         outside [0, N)."""
         if isinstance(waypoint, int | np.integer):

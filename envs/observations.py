@@ -43,9 +43,14 @@ OBSERVATIONS = ("compact", "ladder")
 #: branches: both give the same values; docs/models.md has the measurements.
 FACTORED_BRANCHES = 128
 
+#: :func:`_turn_tables`' answer: factored (bool), fixed, turned_value, window_ok, free.
+_TurnTables = tuple[bool, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
 
 @njit
-def _travel_summaries(candidates, valid, free, weights, scale, leaving, arriving):
+def _travel_summaries(candidates: np.ndarray, valid: np.ndarray, free: np.ndarray,
+                      weights: np.ndarray, scale: float, leaving: np.ndarray,
+                      arriving: np.ndarray) -> None:
     """Per waypoint i < N − 1 and branch a, the least weighted travel Σ_j w_j|Δq_j| from
     valid branch a to any *free* branch of waypoint i + 1 (``leaving[i, a]``), and per
     branch b of waypoint i + 1 the least from any free branch of waypoint i
@@ -77,7 +82,9 @@ def _travel_summaries(candidates, valid, free, weights, scale, leaving, arriving
 
 
 @njit
-def _turn_tables(candidates, valid, endpoint, closed, turned, turns, n_closed, windows):
+def _turn_tables(candidates: np.ndarray, valid: np.ndarray, endpoint: np.ndarray,
+                 closed: np.ndarray, turned: np.ndarray, turns: np.ndarray, n_closed: int,
+                 windows: int) -> _TurnTables:
     """The ladder of an arm with turn branches as its factors, per waypoint i and
     closed-form branch c: the values of the joints without turns ``fixed[i, c]`` (dof),
     of each turned joint in each window ``turned_value[i, c, t, w]``, which windows exist
@@ -113,8 +120,9 @@ def _turn_tables(candidates, valid, endpoint, closed, turned, turns, n_closed, w
 
 
 @njit
-def _factor_branch(q, hit, c, windows, turned, is_turned, fixed, turned_value, window_ok,
-                   exists, free):
+def _factor_branch(q: np.ndarray, hit: bool, c: int, windows: np.ndarray, turned: np.ndarray,
+                   is_turned: np.ndarray, fixed: np.ndarray, turned_value: np.ndarray,
+                   window_ok: np.ndarray, exists: np.ndarray, free: np.ndarray) -> bool:
     """Enter one valid branch (closed-form ``c``, ``windows`` of its turned joints) into
     the factors of its waypoint; False where it contradicts what its turn copies entered."""
     first = not exists[c]
@@ -138,7 +146,9 @@ def _factor_branch(q, hit, c, windows, turned, is_turned, fixed, turned_value, w
 
 
 @njit
-def _least_to(q, fixed, turned_value, window_ok, free, turned, weights, into):
+def _least_to(q: np.ndarray, fixed: np.ndarray, turned_value: np.ndarray,
+              window_ok: np.ndarray, free: np.ndarray, turned: np.ndarray, weights: np.ndarray,
+              into: bool) -> float:
     """The least travel Σ_j w_j|q'_j − q_j| from configuration ``q`` (summed as the
     general kernel sums it: ``abs(later − earlier) * w`` in joint order; ``into``: ``q``
     is the later end) to any free branch of one waypoint given as :func:`_turn_tables`'
@@ -169,8 +179,9 @@ def _least_to(q, fixed, turned_value, window_ok, free, turned, weights, into):
 
 
 @njit
-def _turned_travel_summaries(candidates, valid, tables, turned, weights, scale, leaving,
-                             arriving):
+def _turned_travel_summaries(candidates: np.ndarray, valid: np.ndarray, tables: _TurnTables,
+                             turned: np.ndarray, weights: np.ndarray, scale: float,
+                             leaving: np.ndarray, arriving: np.ndarray) -> None:
     """:func:`_travel_summaries` (the same values, bit for bit) from the factors of a
     ladder with turn branches (:func:`_turn_tables`): O(N·K·Kc) instead of O(N·K²)."""
     _, fixed, turned_value, window_ok, free = tables
@@ -295,13 +306,14 @@ class ObservationBuilder:
         # with which a branch may lie on a joint limit.
         return np.clip(templates, -1.0, 1.0).astype(np.float32)
 
-    def _prepare_ladder(self, ladder, common, templates, width) -> None:
+    def _prepare_ladder(self, ladder: TaskMoves, common: np.ndarray, templates: np.ndarray,
+                        width: int) -> None:
         n, k = ladder.n_waypoints, self.arm.n_branches
         valid = ladder.valid
         if self.lookahead and n > 1:
             # travel[i - 1]: (K, K) from every candidate of waypoint i − 1 to every one of i.
             both = valid[:-1, :, None] & valid[1:, None, :]
-            travel = np.ones((n - 1, k, k))
+            travel: np.ndarray = np.ones((n - 1, k, k))
             travel[both] = ladder.pricer.cost.travel(
                 ladder.candidates[:-1, :, None, :], ladder.candidates[1:, None, :, :]
             )[both] / self.travel_scale
@@ -313,7 +325,8 @@ class ObservationBuilder:
             if h:
                 templates[:rows, start + width : start + width + k * k] = travel[h - 1 :]
 
-    def _prepare_compact(self, ladder, common, templates) -> None:
+    def _prepare_compact(self, ladder: TaskMoves, common: np.ndarray,
+                         templates: np.ndarray) -> None:
         n, k = ladder.n_waypoints, self.arm.n_branches
         # leaving[i] (K): from waypoint i onwards, to the free branches after; arriving[i]
         # (K): into waypoint i, from the free branches before.
@@ -325,6 +338,7 @@ class ObservationBuilder:
             tables = _turn_tables(ladder.candidates, ladder.valid, ladder.endpoint_collision,
                                   closed, turned, turns, n_closed, windows)
         if tables is not None and tables[0]:
+            assert self._turns is not None  # tables are made from the turn factors only
             _turned_travel_summaries(ladder.candidates, ladder.valid, tables, self._turns[1],
                                      weights, scale, leaving, arriving)
         else:

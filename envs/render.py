@@ -33,11 +33,14 @@ from ikbranch_gym.envs.kinematics import make_arm
 from ikbranch_gym.envs.models import SCENES, build_model, milling_cell_poses
 from ikbranch_gym.envs.models.builders import COLLISION_GROUP, VISUAL_GROUP
 
+#: One arm configuration: joint values, kinematics order.
+Configuration = Sequence[float] | np.ndarray
+
 
 def framing_camera(
     model: mujoco.MjModel,
     data: mujoco.MjData,
-    configurations: Sequence[Sequence[float]] = (),
+    configurations: Sequence[Configuration] | np.ndarray = (),
     *,
     azimuth: float = 135.0,
     elevation: float = -28.0,
@@ -99,7 +102,7 @@ class SceneRenderer:
         *,
         width: int = 640,
         height: int = 480,
-        frame_qs: Sequence[Sequence[float]] = (),
+        frame_qs: Sequence[Configuration] | np.ndarray = (),
         camera: mujoco.MjvCamera | str | None = None,
         show_collision: bool = False,
         azimuth: float = 135.0,
@@ -117,14 +120,14 @@ class SceneRenderer:
                                     elevation=elevation, geoms=frame_geoms)
         self.camera = camera
 
-    def render(self, q: Sequence[float] | None = None) -> np.ndarray:
+    def render(self, q: Configuration | None = None) -> np.ndarray:
         if q is not None:
             self.data.qpos[: len(q)] = q
         mujoco.mj_kinematics(self.model, self.data)
         self._renderer.update_scene(self.data, camera=self.camera, scene_option=self._option)
         return self._renderer.render().copy()
 
-    def render_path(self, samples: Iterable[Sequence[float]]) -> list[np.ndarray]:
+    def render_path(self, samples: Iterable[Configuration]) -> list[np.ndarray]:
         return [self.render(q) for q in samples]
 
     def close(self) -> None:
@@ -133,11 +136,11 @@ class SceneRenderer:
     def __enter__(self) -> SceneRenderer:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
 
-def linear_path(q0: Sequence[float], q1: Sequence[float], n_frames: int) -> np.ndarray:
+def linear_path(q0: Configuration, q1: Configuration, n_frames: int) -> np.ndarray:
     """(n_frames, dof) evenly spaced configurations from q0 to q1, both included."""
     q0, q1 = np.asarray(q0, dtype=float), np.asarray(q1, dtype=float)
     return q0 + np.linspace(0.0, 1.0, n_frames)[:, None] * (q1 - q0)

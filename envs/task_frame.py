@@ -10,7 +10,10 @@ generator works in the cell with any tool, without knowing about either.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ikbranch_gym.envs.kinematics import Arm
 
@@ -35,13 +38,13 @@ class TaskFrame:
         self.identity = bool(np.array_equal(self.cell_from_base, np.eye(4))
                              and np.array_equal(self.tcp, np.eye(4)))
 
-    def to_fk(self, poses: np.ndarray) -> np.ndarray:
+    def to_fk(self, poses: ArrayLike) -> np.ndarray:
         """Task poses (…, 4, 4) as poses of the fk frame in the base frame."""
         if self.identity:
             return np.asarray(poses, dtype=np.float64)
         return self._base_from_cell @ np.asarray(poses, dtype=np.float64) @ self._fk_from_tcp
 
-    def from_fk(self, poses: np.ndarray) -> np.ndarray:
+    def from_fk(self, poses: ArrayLike) -> np.ndarray:
         """Poses of the fk frame in the base frame (…, 4, 4) as task poses."""
         if self.identity:
             return np.asarray(poses, dtype=np.float64)
@@ -55,14 +58,14 @@ class FramedArm:
     def __init__(self, arm: Arm, frame: TaskFrame) -> None:
         self.arm, self.frame = arm, frame
 
-    def __getattr__(self, name: str):
+    def __getattr__(self, name: str) -> Any:
         return getattr(self.arm, name)
 
-    def fk(self, q) -> np.ndarray:
+    def fk(self, q: ArrayLike) -> np.ndarray:
         return self.frame.from_fk(self.arm.fk(q))
 
-    def ik(self, pose) -> tuple[np.ndarray, np.ndarray]:
+    def ik(self, pose: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         return self.arm.ik(self.frame.to_fk(pose))
 
-    def reaches(self, pose) -> np.ndarray:
+    def reaches(self, pose: ArrayLike) -> np.ndarray:
         return self.arm.reaches(self.frame.to_fk(pose))

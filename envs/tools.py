@@ -82,7 +82,7 @@ def _frame(spec: Any, label: str) -> np.ndarray:
     return pose
 
 
-def _numbers(value, count: int, label: str) -> tuple[float, ...]:
+def _numbers(value: Any, count: int, label: str) -> tuple[float, ...]:
     try:
         array = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):

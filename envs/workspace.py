@@ -25,10 +25,13 @@ the quadrant facing the viewer cut away, so that hollows around the axis show.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ikbranch_gym.envs.kinematics import ARM_NAMES, Arm, make_arm
 from ikbranch_gym.envs.kinematics.arm import REVOLUTE
@@ -55,7 +58,8 @@ class VolumeEstimate:
     volume_half: float  # the same estimate from every second sample, same grid
 
 
-def sample_joints(arm: Arm, n: int, rng: np.random.Generator, limits=None) -> np.ndarray:
+def sample_joints(arm: Arm, n: int, rng: np.random.Generator,
+                  limits: ArrayLike | None = None) -> np.ndarray:
     """(n, dof) joint values uniform within ``limits`` ((dof, 2), SI; default the arm's)."""
     limits = np.asarray(arm.joint_limits if limits is None else limits, dtype=np.float64)
     if limits.shape != (arm.dof, 2) or np.any(limits[:, 0] >= limits[:, 1]):
@@ -63,7 +67,8 @@ def sample_joints(arm: Arm, n: int, rng: np.random.Generator, limits=None) -> np
     return rng.uniform(limits[:, 0], limits[:, 1], size=(n, arm.dof))
 
 
-def sample_workspace(arm: Arm, n: int, rng: np.random.Generator, limits=None) -> np.ndarray:
+def sample_workspace(arm: Arm, n: int, rng: np.random.Generator,
+                     limits: ArrayLike | None = None) -> np.ndarray:
     """(n, 3) positions of the output point for ``n`` uniform joint samples."""
     return arm.fk(sample_joints(arm, n, rng, limits))[:, :3, 3]
 
@@ -116,7 +121,8 @@ def section_direction(arm: Arm) -> np.ndarray:
     return home / norm if norm > 1e-9 else np.array([0.0, 1.0])
 
 
-def plot_workspace(arm: Arm, points: np.ndarray, estimate: VolumeEstimate, out, title=None):
+def plot_workspace(arm: Arm, points: np.ndarray, estimate: VolumeEstimate,
+                   out: str | os.PathLike[str], title: str | None = None) -> None:
     """Write the section and 3-D view of ``points`` to ``out`` (a PNG path)."""
     # A bare Figure renders with Agg and leaves the caller's pyplot backend alone.
     from matplotlib.figure import Figure
@@ -155,7 +161,7 @@ def plot_workspace(arm: Arm, points: np.ndarray, estimate: VolumeEstimate, out, 
     fig.savefig(out, dpi=110)
 
 
-def limits_from_ranges(arm: Arm, ranges) -> np.ndarray:
+def limits_from_ranges(arm: Arm, ranges: Iterable[tuple[str, float, float]]) -> np.ndarray:
     """The arm's limits with ``ranges`` [(joint, lo, hi), …] in degrees / mm replacing them."""
     limits = np.array(arm.joint_limits, dtype=np.float64)
     for joint, lo, hi in ranges:
@@ -179,7 +185,9 @@ def describe_limits(arm: Arm, limits: np.ndarray) -> str:
     return ", ".join(parts)
 
 
-def run(arm: Arm | str, out, samples=DEFAULT_SAMPLES, seed=0, limits=None, edge=None, title=None):
+def run(arm: Arm | str, out: str | os.PathLike[str], samples: int = DEFAULT_SAMPLES,
+        seed: int = 0, limits: ArrayLike | None = None, edge: float | None = None,
+        title: str | None = None) -> VolumeEstimate:
     """Sample, estimate and draw; returns the ``VolumeEstimate``. ``arm``: name or Arm."""
     arm = make_arm(arm) if isinstance(arm, str) else arm
     points = sample_workspace(arm, samples, np.random.default_rng(seed), limits)
@@ -188,7 +196,7 @@ def run(arm: Arm | str, out, samples=DEFAULT_SAMPLES, seed=0, limits=None, edge=
     return estimate
 
 
-def main(argv=None) -> int:
+def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="python -m envs.workspace", description=__doc__.split("\n\n")[0]
     )

@@ -89,6 +89,7 @@ from dataclasses import dataclass
 import mujoco
 import mujoco.batch
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .filter import DISTANCE_TOLERANCE, CompiledFilter, path_steps
 from .filter.kernels import BY_MUJOCO
@@ -258,7 +259,7 @@ class CollisionChecker:
         self._plane_pairs = plane[:, 0]
         self._pair_bodies = self.model.geom_bodyid[self._pairs]
         self._radius_sum = np.where(plane, 0.0, self.model.geom_rbound[self._pairs]).sum(axis=1)
-        self._filter = None
+        self._filter: CompiledFilter | None = None
         if backend == "compiled":
             self._filter = CompiledFilter(self.model, self._data, self.dof, self._pairs)
 
@@ -274,6 +275,11 @@ class CollisionChecker:
         self._radius_sum = np.where(plane, 0.0, self.model.geom_rbound[self._pairs]).sum(axis=1)
         self._batch = None
 
+    def _compiled(self) -> CompiledFilter:
+        """The compiled backend's filter."""
+        assert self._filter is not None  # __init__ builds it for the compiled backend
+        return self._filter
+
     # ------------------------------------------------------------------ configurations
     def _full_qpos(self, q: np.ndarray) -> np.ndarray:
         full = np.broadcast_to(self.model.qpos0, (len(q), self.model.nq)).copy()
@@ -288,7 +294,7 @@ class CollisionChecker:
             self._ncon = self._batch.bind("ncon")
         return self._batch
 
-    def _configurations(self, q) -> np.ndarray:
+    def _configurations(self, q: ArrayLike) -> np.ndarray:
         """``q`` (…, dof) as float rows, ``ValueError`` for a wrong last axis or NaN/inf."""
         q = np.asarray(q, dtype=np.float64)
         if q.shape[-1:] != (self.dof,):
@@ -297,14 +303,14 @@ class CollisionChecker:
             raise ValueError("q contains NaN or inf")
         return q
 
-    def n_contacts(self, q) -> np.ndarray:
+    def n_contacts(self, q: ArrayLike) -> np.ndarray:
         """Number of contacts (within the margin) for configurations ``q`` (…, dof)."""
         q = self._configurations(q)
         flat = q.reshape(-1, self.dof)
         if self.backend == "loop":
             return self._n_contacts_loop(flat).reshape(q.shape[:-1])
         if self.backend == "compiled":
-            return self._filter.contacts(np.ascontiguousarray(flat)).reshape(q.shape[:-1])
+            return self._compiled().contacts(np.ascontiguousarray(flat)).reshape(q.shape[:-1])
         out = np.empty(len(flat), dtype=np.int64)
         batch = self._ensure_batch()
         for start in range(0, len(flat), self._chunk):
@@ -316,16 +322,16 @@ class CollisionChecker:
             out[start : start + n] = self._ncon[:n]
         return out.reshape(q.shape[:-1])
 
-    def collides(self, q) -> np.ndarray:
+    def collides(self, q: ArrayLike) -> np.ndarray:
         """(…,) bool: configuration ``q`` (…, dof) has a contact (closer than δ if padded).
         The compiled backend takes a contact its inner shapes prove without counting it."""
         if self.backend == "compiled":
             q = self._configurations(q)
             flat = np.ascontiguousarray(q.reshape(-1, self.dof))
-            return (self._filter.collide(flat) > 0).reshape(q.shape[:-1])
+            return (self._compiled().collide(flat) > 0).reshape(q.shape[:-1])
         return self.n_contacts(q) > 0
 
-    def collides_loop(self, q) -> np.ndarray:
+    def collides_loop(self, q: ArrayLike) -> np.ndarray:
         """Same as :meth:`collides` with the plain loop, whatever the backend."""
         q = np.asarray(q, dtype=np.float64)
         return (self._n_contacts_loop(q.reshape(-1, self.dof)) > 0).reshape(q.shape[:-1])
@@ -343,7 +349,7 @@ class CollisionChecker:
                 break
         return out
 
-    def contacts(self, q) -> tuple[Contact, ...]:
+    def contacts(self, q: ArrayLike) -> tuple[Contact, ...]:
         """The contacts of one configuration ``q`` (dof,), closest first."""
         model, data = self.model, self._data
         data.qpos[:] = self._full_qpos(np.asarray(q, dtype=np.float64)[None])[0]
@@ -364,13 +370,13 @@ class CollisionChecker:
         return tuple(sorted(found, key=lambda c: c.distance))
 
     # ------------------------------------------------------------------------- paths
-    def displacement_bound(self, q0, q1) -> np.ndarray:
+    def displacement_bound(self, q0: ArrayLike, q1: ArrayLike) -> np.ndarray:
         """(…,) D = Σ_j R_j |Δq_j|: largest distance (m) any geom point travels along the
         linear path (summed in joint order, as :meth:`n_steps` does)."""
         delta = np.abs(np.asarray(q1, dtype=np.float64) - np.asarray(q0, dtype=np.float64))
         return (delta * self.lever).sum(axis=-1)
 
-    def n_steps(self, q0, q1) -> np.ndarray:
+    def n_steps(self, q0: ArrayLike, q1: ArrayLike) -> np.ndarray:
         """(…,) number of intervals n = ⌈D/δ⌉ (≥ 1) for the path q0 → q1: one definition
         (``compiled.path_steps``) for every backend and batch shape."""
         q0, q1 = self._ends(q0, q1)
@@ -382,20 +388,20 @@ class CollisionChecker:
         path_steps(start, end, self.lever, self.resolution, out)
         return out.reshape(shape)
 
-    def path_samples(self, q0, q1) -> np.ndarray:
+    def path_samples(self, q0: ArrayLike, q1: ArrayLike) -> np.ndarray:
         """(n + 1, dof) samples q0 + (i/n)(q1 − q0) of the path q0 → q1 (both ends
         included), the grid every backend checks."""
         q0, q1 = self._ends(q0, q1)
         n = int(self.n_steps(q0, q1))
         return q0 + (np.arange(n + 1) / n)[:, None] * (q1 - q0)
 
-    def check_path(self, q0, q1) -> PathResult:
+    def check_path(self, q0: ArrayLike, q1: ArrayLike) -> PathResult:
         """Check the linear path q0 → q1 (each (dof,))."""
         q0, q1 = self._ends(q0, q1)
         collides, first, contacts, samples = self._check_paths_flat(q0[None], q1[None], True)
         return PathResult(bool(collides[0]), float(first[0]), contacts[0], int(samples[0]))
 
-    def check_paths(self, q0, q1) -> tuple[np.ndarray, np.ndarray]:
+    def check_paths(self, q0: ArrayLike, q1: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Check many paths at once, ``q0`` and ``q1`` broadcast to (…, dof).
 
         Returns ``collides`` (…,) bool and ``first_fraction`` (…,) (NaN where free): the
@@ -409,7 +415,7 @@ class CollisionChecker:
         )
         return collides.reshape(shape), first.reshape(shape)
 
-    def paths_collide(self, q0, q1) -> np.ndarray:
+    def paths_collide(self, q0: ArrayLike, q1: ArrayLike) -> np.ndarray:
         """(…,) bool: the verdicts of :meth:`check_paths` for ``q0``, ``q1`` broadcast to
         (…, dof), without the first colliding sample. The compiled backend stops a path at
         the first contact it finds, wherever on the path: the same verdict for less work.
@@ -433,12 +439,12 @@ class CollisionChecker:
             return self._check_paths_flat(start, end, False)[0]
         steps = np.empty(len(end), dtype=np.int64)
         path_steps(start, end, self.lever, self.resolution, steps)
-        return self._filter.paths(start, end, steps, False) >= 0
+        return self._compiled().paths(start, end, steps, False) >= 0
 
     def rows_collide(self, q: np.ndarray) -> np.ndarray:
         """:meth:`collides` for C-contiguous float64 rows (M, dof) already checked finite."""
         if self.backend == "compiled":
-            return self._filter.collide(q) > 0
+            return self._compiled().collide(q) > 0
         return self.collides(q)
 
     def rows_collide_proved(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -447,7 +453,7 @@ class CollisionChecker:
         that holds for any configuration placing every geom within far less than that
         tolerance of this one. Other backends prove nothing."""
         if self.backend == "compiled":
-            out, how = self._filter.collide_how(q)
+            out, how = self._compiled().collide_how(q)
             return out > 0, how != BY_MUJOCO
         return self.collides(q), np.zeros(len(q), dtype=bool)
 
@@ -456,10 +462,10 @@ class CollisionChecker:
         (M, dof), checked finite), fewer if fewer are free: the rows after the ``need``-th
         free one are not checked (the compiled backend stops there)."""
         if self.backend == "compiled":
-            return np.flatnonzero(self._filter.collide(q, need) == 0)
+            return np.flatnonzero(self._compiled().collide(q, need) == 0)
         return np.flatnonzero(~self.collides(q))[:need]
 
-    def _ends(self, q0, q1) -> tuple[np.ndarray, np.ndarray]:
+    def _ends(self, q0: ArrayLike, q1: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Path ends as float arrays, ``ValueError`` for a wrong last axis or NaN/inf."""
         q0, q1 = np.asarray(q0, dtype=np.float64), np.asarray(q1, dtype=np.float64)
         for q in (q0, q1):
@@ -469,15 +475,17 @@ class CollisionChecker:
             raise ValueError("path ends contain NaN or inf")
         return q0, q1
 
-    def _check_paths_flat(self, q0: np.ndarray, q1: np.ndarray, want_contacts: bool):
+    def _check_paths_flat(
+        self, q0: np.ndarray, q1: np.ndarray, want_contacts: bool
+    ) -> tuple[np.ndarray, np.ndarray, list[tuple[Contact, ...]], np.ndarray]:
         steps = self.n_steps(q0, q1)
         counts = steps + 1
         collides = np.zeros(len(q0), dtype=bool)
         first = np.full(len(q0), np.nan)
         contacts: list[tuple[Contact, ...]] = [() for _ in range(len(q0))]
         if self.backend == "compiled":
-            index = self._filter.paths(np.ascontiguousarray(q0), np.ascontiguousarray(q1),
-                                       steps, True)
+            index = self._compiled().paths(np.ascontiguousarray(q0),
+                                           np.ascontiguousarray(q1), steps, True)
             for path in np.flatnonzero(index >= 0):
                 collides[path] = True
                 first[path] = index[path] / steps[path]
@@ -486,14 +494,14 @@ class CollisionChecker:
                     contacts[path] = self.contacts(sample)
             return collides, first, contacts, counts
         if self.backend == "loop":
-            for path, n in enumerate(steps.tolist()):
-                index = self._first_hit_advancing(q0[path], q1[path], n)
-                if index >= 0:
-                    collides[path] = True
-                    first[path] = index / n
+            for row, n in enumerate(steps.tolist()):
+                hit_index = self._first_hit_advancing(q0[row], q1[row], n)
+                if hit_index >= 0:
+                    collides[row] = True
+                    first[row] = hit_index / n
                     if want_contacts:
-                        sample = q0[path] + first[path] * (q1[path] - q0[path])
-                        contacts[path] = self.contacts(sample)
+                        sample = q0[row] + first[row] * (q1[row] - q0[row])
+                        contacts[row] = self.contacts(sample)
             return collides, first, contacts, counts
         owner = np.repeat(np.arange(len(q0)), counts)
         starts = np.concatenate([[0], np.cumsum(counts)[:-1]])

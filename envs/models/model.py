@@ -129,6 +129,8 @@ def _add_tool_part(spec: mujoco.MjSpec, holder: mujoco.MjsBody, part: ToolPart,
     quat = np.zeros(4)
     mujoco.mju_mat2Quat(quat, part.offset[:3, :3].ravel())
     if part.shape == "mesh":
+        if part.mesh is None:  # ToolPart.from_spec gives every mesh part its file
+            raise ValueError(f"tool part {name}: shape 'mesh' needs a mesh file")
         mesh = spec.add_mesh()
         mesh.name = f"{name}_mesh"
         mesh.file = str(part.mesh.resolve())

@@ -26,10 +26,11 @@ import ctypes
 import functools
 import glob
 import os
+from typing import Any, TypeAlias
 
 import mujoco
 import numpy as np
-from llvmlite import ir
+from llvmlite import ir  # type: ignore[import-untyped]  # llvmlite ships no type information
 from mujoco.introspect import ast_nodes, structs
 from numba import types
 from numba.extending import intrinsic
@@ -51,7 +52,10 @@ def _library() -> ctypes.CDLL:
 @functools.cache
 def function_address(name: str) -> int:
     """Address of the exported MuJoCo C function ``name`` (e.g. ``"mj_collision"``)."""
-    return int(ctypes.cast(getattr(_library(), name), ctypes.c_void_p).value)
+    address = ctypes.cast(getattr(_library(), name), ctypes.c_void_p).value
+    if address is None:  # a NULL symbol: getattr raises for a missing one, so not expected
+        raise RuntimeError(f"libmujoco exports {name} at address NULL")
+    return int(address)
 
 
 @intrinsic
@@ -105,7 +109,12 @@ def exact_addresses(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
                      model._address, data._address], dtype=np.uint64)
 
 
-_SCALARS = {
+#: A ctypes type of one of mjData's fields: a scalar, a fixed array or a plain struct.
+_CType: TypeAlias = (
+    "type[ctypes._SimpleCData[Any]] | type[ctypes.Array[Any]] | type[ctypes.Structure]"
+)
+
+_SCALARS: dict[str, _CType] = {
     "int": ctypes.c_int,
     "mjtNum": ctypes.c_double,
     "float": ctypes.c_float,
@@ -117,7 +126,7 @@ _SCALARS = {
 }
 
 
-def _ctype(node) -> type:
+def _ctype(node: Any) -> _CType:
     if isinstance(node, ast_nodes.ArrayType):
         return _ctype(node.inner_type) * int(np.prod(node.extents))
     if isinstance(node, ast_nodes.PointerType):
@@ -131,7 +140,7 @@ def _ctype(node) -> type:
 
 
 @functools.cache
-def _struct(name: str) -> type:
+def _struct(name: str) -> type[ctypes.Structure]:
     fields = [(field.name, _ctype(field.type)) for field in structs.STRUCTS[name].fields]
     return type(name, (ctypes.Structure,), {"_fields_": fields})
 
@@ -147,7 +156,8 @@ def ncon_offset() -> int:
             break
     else:
         raise RuntimeError("mujoco.introspect describes no mjData.ncon")
-    prefix = type("mjDataPrefix", (ctypes.Structure,), {"_fields_": fields})
+    # Any: a struct whose fields (attribute ncon) exist at run time only.
+    prefix: Any = type("mjDataPrefix", (ctypes.Structure,), {"_fields_": fields})
     return int(prefix.ncon.offset)
 
 

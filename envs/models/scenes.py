@@ -189,7 +189,7 @@ def draw_clutter(arm: Arm, seed: int, base: list[tuple[np.ndarray, float]],
     rng = np.random.default_rng(seed)
     lower, upper = arm.joint_limits[:, 0], arm.joint_limits[:, 1]
     poses = arm.fk(rng.uniform(lower, upper, size=(n_obstacles, arm.dof)))
-    flat = []  # (x, y, radius) of every disc
+    flat: list[float] = []  # (x, y, radius) of every disc
     for disc, radius in base:
         flat += disc.tolist() if type(disc) is np.ndarray else list(disc)
         flat.append(radius)
@@ -326,7 +326,7 @@ class ClutterSlots:
         # Rows (slot, parts, half x, y, z, pos x, y, z); parts: 0 the box geoms (box and
         # its visual), 1 the cylinder geoms, 2 a disc (collided as the box around it, as
         # add_part builds it: the box and the visual cylinder).
-        flat = []
+        flat: list[float] = []
         for obstacle in obstacles:
             half = obstacle.half
             parts = 0 if obstacle.kind == "box" else 1 if half[2] >= half[0] else 2
