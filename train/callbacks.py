@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 from sb3_contrib.common.maskable.callbacks import MaskableEvalCallback
 from stable_baselines3.common.callbacks import BaseCallback
+
+from ikbranch_gym.envs.files import write_atomically
 
 LATEST = "latest.zip"
 #: Running reward statistics of a ``VecNormalize`` training env, kept beside checkpoints.
@@ -15,12 +16,9 @@ REWARD_STATS = "vecnormalize.pkl"
 
 
 def atomic_save(model, path: str | Path) -> None:
-    """Save ``model`` to ``path`` (a .zip) so that a crash never leaves a half-written file:
-    write beside it, then rename (atomic on POSIX file systems)."""
-    path = Path(path)
-    partial = path.with_name(path.name + ".partial.zip")
-    model.save(partial)
-    os.replace(partial, path)
+    """Save ``model`` to ``path`` (a .zip) so that a crash never leaves a half-written file
+    (``envs.files.write_atomically``: written beside it, then renamed)."""
+    write_atomically(path, model.save)
 
 
 class AtomicCheckpointCallback(BaseCallback):
@@ -45,9 +43,7 @@ class AtomicCheckpointCallback(BaseCallback):
         atomic_save(self.model, self.save_dir / LATEST)
         normalizer = self.model.get_vec_normalize_env()
         if normalizer is not None:
-            partial = self.save_dir / (REWARD_STATS + ".partial")
-            normalizer.save(partial)
-            os.replace(partial, self.save_dir / REWARD_STATS)
+            write_atomically(self.save_dir / REWARD_STATS, normalizer.save)
         return path
 
 

@@ -35,10 +35,8 @@ import hashlib
 import io
 import json
 import math
-import os
 import platform
 import sys
-import tempfile
 import time
 import traceback
 from collections.abc import Sequence
@@ -51,6 +49,7 @@ import numpy as np
 
 from ikbranch_gym.agents import BASELINES
 from ikbranch_gym.agents.evaluation import ORACLE, parse_spec
+from ikbranch_gym.envs.files import write_all_atomically
 
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_UNSAFE = 0, 1, 2, 3
 #: The planner names ``--planner`` takes besides ``MODEL.zip``: the baselines
@@ -578,28 +577,6 @@ def gif_bytes(images: Sequence[np.ndarray], durations: Sequence[float]) -> bytes
                        duration=[round(1000.0 * d) for d in durations], loop=0)
 
 
-# ------------------------------------------------------------------------ atomic writing
-def write_all(outputs: dict[Path, bytes]) -> None:
-    """Write every file beside its target, then rename each into place: on any failure
-    before the renames nothing appears (and an existing file stays as it was)."""
-    staged: list[tuple[str, Path]] = []
-    umask = os.umask(0)
-    os.umask(umask)
-    try:
-        for path, content in outputs.items():
-            handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp",
-                                                 dir=path.parent if str(path.parent) else ".")
-            staged.append((temporary, path))
-            with os.fdopen(handle, "wb") as stream:
-                stream.write(content)
-            os.chmod(temporary, 0o666 & ~umask)  # mkstemp's 0600 is not a plan's mode
-        for temporary, path in staged:
-            os.replace(temporary, path)
-    finally:
-        for temporary, _ in staged:
-            Path(temporary).unlink(missing_ok=True)
-
-
 # ------------------------------------------------------------------------ parsing inputs
 def _json_value(text: str, option: str) -> Any:
     try:
@@ -921,7 +898,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             frames = animation_frames(result, fps=args.gif_fps, speed=args.gif_speed)
             images = render_frames(result, frames, width, height)
             files[outputs["--gif"]] = gif_bytes(images, [f.duration for f in frames])
-        write_all(files)
+        write_all_atomically(files)  # every file or none
     except PlanInputError as exc:
         return _fail(str(exc))
     except ValueError as exc:  # the env's and the planners' checks of the inputs

@@ -32,6 +32,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from ikbranch_gym.envs.files import write_atomically
 from ikbranch_gym.train.hyperparams import ALGORITHMS
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -75,9 +76,7 @@ def finished(spec: dict[str, Any]) -> Path | None:
 def _write_json(path: Path, record: dict) -> None:
     """Atomically: a reader (or a resumed sweep) never sees half a file."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    partial = path.with_suffix(".json.partial")
-    partial.write_text(json.dumps(record, indent=1) + "\n")
-    os.replace(partial, path)
+    write_atomically(path, json.dumps(record, indent=1) + "\n")
 
 
 def run_trial(spec: dict[str, Any]) -> dict[str, Any]:

@@ -27,6 +27,7 @@ import itertools
 import numpy as np
 
 from ikbranch_gym.envs.kinematics import Arm
+from ikbranch_gym.envs.kinematics.rotations import axis_quaternion
 
 from .builders import (
     DARK,
@@ -44,14 +45,6 @@ from .builders import (
 
 OPW_ARMS = ("opw", "kuka_kr6_r700", "abb_irb2400", "abb_irb2600", "abb_irb4600")
 UR_ARMS = ("ur", "ur5e", "ur10e")
-
-
-def _axis_quat(axis: str, angle: float) -> np.ndarray:
-    """Unit quaternion (w, x, y, z) of a turn by ``angle`` about the local x, y or z axis."""
-    quat = np.zeros(4)
-    quat[0] = np.cos(angle / 2)
-    quat["xyz".index(axis) + 1] = np.sin(angle / 2)
-    return quat
 
 
 def _joint_body(parent, arm: Arm, index: int, axis: str, sign: float, pos, quat):
@@ -109,17 +102,17 @@ def build_opw(spec, arm: Arm, tool: bool = False) -> ArmTree:
     plinth = max(0.5 * arm.c1, 0.05)
     add_part(base, "plinth", "cylinder", [0.35 * scale], DARK,
              fromto=[0, 0, 0, 0, 0, plinth])
-    j1 = _joint_body(base, arm, 0, "z", signs[0], (0, 0, 0), _axis_quat("z", -offsets[0]))
+    j1 = _joint_body(base, arm, 0, "z", signs[0], (0, 0, 0), axis_quaternion("z", -offsets[0]))
     add_part(j1, "column", "capsule", [0.25 * scale],
              ORANGE, fromto=[0, 0, plinth + 0.26 * scale, 0, 0, arm.c1])
     add_part(j1, "shoulder", "capsule", [0.2 * scale], DARK,
              fromto=[arm.a1, arm.b - 0.3 * scale, arm.c1, arm.a1, arm.b + 0.3 * scale, arm.c1])
     j2 = _joint_body(j1, arm, 1, "y", signs[1], (arm.a1, arm.b, arm.c1),
-                     _axis_quat("y", -offsets[1]))
+                     axis_quaternion("y", -offsets[1]))
     add_part(j2, "upper_arm", "capsule", [0.16 * scale], ORANGE, fromto=[0, 0, 0, 0, 0, arm.c2])
     add_part(j2, "elbow", "capsule", [0.15 * scale], DARK,
              fromto=[0, -0.22 * scale, arm.c2, 0, 0.22 * scale, arm.c2])
-    j3 = _joint_body(j2, arm, 2, "y", signs[2], (0, 0, arm.c2), _axis_quat("y", -offsets[2]))
+    j3 = _joint_body(j2, arm, 2, "y", signs[2], (0, 0, arm.c2), axis_quaternion("y", -offsets[2]))
     setback = 0.3 * scale
     if abs(arm.a2) > 0.15 * scale:
         add_part(j3, "elbow_offset", "capsule", [0.12 * scale], ORANGE,
@@ -127,13 +120,13 @@ def build_opw(spec, arm: Arm, tool: bool = False) -> ArmTree:
     add_part(j3, "forearm", "capsule", [0.12 * scale], ORANGE,
              fromto=[arm.a2, 0, 0, arm.a2, 0, max(arm.c3 - setback, 0.0)])
     j4 = _joint_body(j3, arm, 3, "z", signs[3], (arm.a2, 0, arm.c3),
-                     _axis_quat("z", -offsets[3]))
+                     axis_quaternion("z", -offsets[3]))
     add_part(j4, "roll_housing", "capsule", [0.11 * scale], ORANGE,
              fromto=[0, 0, -setback, 0, 0, -0.45 * setback])
-    j5 = _joint_body(j4, arm, 4, "y", signs[4], (0, 0, 0), _axis_quat("y", -offsets[4]))
+    j5 = _joint_body(j4, arm, 4, "y", signs[4], (0, 0, 0), axis_quaternion("y", -offsets[4]))
     add_part(j5, "bend_housing", "capsule", [0.09 * scale], DARK,
              fromto=[0, -0.1 * scale, 0, 0, 0.1 * scale, 0])
-    j6 = _joint_body(j5, arm, 5, "z", signs[5], (0, 0, 0), _axis_quat("z", -offsets[5]))
+    j6 = _joint_body(j5, arm, 5, "z", signs[5], (0, 0, 0), axis_quaternion("z", -offsets[5]))
     add_part(j6, "flange", "cylinder", [0.07 * scale], STEEL,
              fromto=[0, 0, 0.35 * arm.c4, 0, 0, arm.c4])
     _site(j6, "ee", (0, 0, arm.c4))
@@ -168,7 +161,7 @@ def build_ur(spec, arm: Arm, tool: bool = False) -> ArmTree:
             pos, quat = (0.0, 0.0, 0.0), np.array([1.0, 0.0, 0.0, 0.0])
         else:
             pos = (a[index - 1], 0.0, d[index - 1])
-            quat = _axis_quat("x", _UR_ALPHA[index - 1])
+            quat = axis_quaternion("x", _UR_ALPHA[index - 1])
         parent = _joint_body(parent, arm, index, "z", 1.0, pos, quat)
         bodies.append(parent)
     base_link, shoulder, elbow, wrist1, wrist2, wrist3 = bodies

@@ -49,6 +49,7 @@ import mujoco
 import numpy as np
 
 from ikbranch_gym.envs.kinematics import Arm
+from ikbranch_gym.envs.kinematics.rotations import invert_pose, quaternion_matrix, rpy_matrix
 
 from .builders import (
     COLLISION_BIT,
@@ -232,37 +233,6 @@ def _vector(value, n: int, name: str) -> np.ndarray:
     if not np.all(np.isfinite(array)):
         raise ValueError(f"{name} contains NaN or inf: {array.tolist()}")
     return array
-
-
-def quaternion_matrix(q) -> np.ndarray:
-    """Rotation (3, 3) of a quaternion (w, x, y, z) of norm ≈ 1 (its rotation: s = 2/‖q‖²)."""
-    w, x, y, z = (float(v) for v in q)
-    s = 2.0 / (w * w + x * x + y * y + z * z)
-    return np.array([
-        [1 - s * (y * y + z * z), s * (x * y - w * z), s * (x * z + w * y)],
-        [s * (x * y + w * z), 1 - s * (x * x + z * z), s * (y * z - w * x)],
-        [s * (x * z - w * y), s * (y * z + w * x), 1 - s * (x * x + y * y)],
-    ])
-
-
-def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """Rz(yaw)·Ry(pitch)·Rx(roll): fixed axes x, then y, then z (URDF's ``rpy``)."""
-    cr, sr, cp, sp, cy, sy = (
-        f(angle) for angle in (roll, pitch, yaw) for f in (math.cos, math.sin)
-    )
-    return np.array([
-        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-        [-sp, cp * sr, cp * cr],
-    ])
-
-
-def invert_pose(pose: np.ndarray) -> np.ndarray:
-    rotation, position = pose[:3, :3], pose[:3, 3]
-    inverse = np.eye(4)
-    inverse[:3, :3] = rotation.T
-    inverse[:3, 3] = -(rotation.T @ position)
-    return inverse
 
 
 # -------------------------------------------------------------------------------- reading

@@ -32,7 +32,6 @@ import json
 import math
 import os
 import re
-import tempfile
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -40,8 +39,13 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ikbranch_gym.envs.files import write_atomically
 from ikbranch_gym.envs.kinematics import pose_from_points
-from ikbranch_gym.envs.kinematics.rotations import ORTHONORMAL_TOL
+from ikbranch_gym.envs.kinematics.rotations import (
+    ORTHONORMAL_TOL,
+    quaternion_matrix,
+    rotation_to_quaternion,
+)
 
 #: Largest accepted |‖q‖ − 1| of a quaternion. Within it, the row's rotation is the one q
 #: represents (the rotation of q/‖q‖: the rounding of a printed unit quaternion, 6+
@@ -446,18 +450,7 @@ def _quaternion_rotations(
             path, f"quaternion norm {math.sqrt(norm2[r])!r} is not 1 within {QUATERNION_TOL:g}"
             " (quaternions are not normalised: write a unit quaternion)", **place(lines[r]),
         )
-    s = 2.0 / norm2  # the rotation of q (for ‖q‖ = 1 exactly: the unit-quaternion formula)
-    rotation = np.empty((len(w), 3, 3))
-    rotation[:, 0, 0] = 1.0 - s * (y * y + z * z)
-    rotation[:, 0, 1] = s * (x * y - w * z)
-    rotation[:, 0, 2] = s * (x * z + w * y)
-    rotation[:, 1, 0] = s * (x * y + w * z)
-    rotation[:, 1, 1] = 1.0 - s * (x * x + z * z)
-    rotation[:, 1, 2] = s * (y * z - w * x)
-    rotation[:, 2, 0] = s * (x * z - w * y)
-    rotation[:, 2, 1] = s * (y * z + w * x)
-    rotation[:, 2, 2] = 1.0 - s * (x * x + y * y)
-    return rotation
+    return quaternion_matrix(np.stack([w, x, y, z], axis=-1))
 
 
 def _matrix_rotations(
@@ -552,7 +545,7 @@ def write_waypoints(
         text = _csv_text(columns, names, rows)
     else:
         text = _json_text(columns, names, rows)
-    _write_atomically(path, text)
+    write_atomically(path, text)
     return path
 
 
@@ -605,39 +598,3 @@ def _json_text(columns: tuple[str, ...], names: list[str] | None,
         for i, row in enumerate(rows)
     ]
     return json.dumps(entries, indent=1, allow_nan=False) + "\n"
-
-
-def rotation_to_quaternion(rotation: ArrayLike) -> np.ndarray:
-    """Unit quaternion (w, x, y, z), w ≥ 0, of a (3, 3) rotation (Shepperd's method)."""
-    m = np.asarray(rotation, dtype=np.float64)
-    trace = m[0, 0] + m[1, 1] + m[2, 2]
-    candidates = (trace, m[0, 0], m[1, 1], m[2, 2])
-    k = int(np.argmax(candidates))
-    if k == 0:
-        s = 2.0 * math.sqrt(1.0 + trace)
-        q = (0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s)
-    elif k == 1:
-        s = 2.0 * math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
-        q = ((m[2, 1] - m[1, 2]) / s, 0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s)
-    elif k == 2:
-        s = 2.0 * math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
-        q = ((m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s)
-    else:
-        s = 2.0 * math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
-        q = ((m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s)
-    quaternion = np.array(q)
-    # The rotation's own quaternion; only rounding is removed here.
-    quaternion /= np.linalg.norm(quaternion)
-    return -quaternion if quaternion[0] < 0 else quaternion
-
-
-def _write_atomically(path: Path, text: str) -> None:
-    directory = path.parent if str(path.parent) else Path(".")
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
-    try:
-        with os.fdopen(handle, "w", encoding="utf-8", newline="") as stream:
-            stream.write(text)
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise

@@ -319,6 +319,28 @@ def test_write_rejects_bad_poses_and_leaves_the_old_file(tmp_path, poses, kwargs
     assert [p.name for p in tmp_path.iterdir()] == ["w.csv"]  # no temporary left behind
 
 
+def test_a_written_file_appears_whole_with_an_ordinary_files_mode(tmp_path, monkeypatch):
+    # Written through envs.files: the permissions of an ordinary new file (not a
+    # temporary file's 0600), and a failure while writing leaves the old file.
+    import os
+    import stat
+
+    ordinary = tmp_path / "ordinary.csv"
+    ordinary.write_text("")
+    path = write_waypoints(tmp_path / "w.csv", np.eye(4)[None])
+    assert stat.S_IMODE(path.stat().st_mode) == stat.S_IMODE(ordinary.stat().st_mode)
+    before = path.read_bytes()
+
+    def full_disk(fd):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(os, "fsync", full_disk)
+    with pytest.raises(OSError, match="No space"):
+        write_waypoints(path, random_poses(3, seed=1))
+    assert path.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ordinary.csv", "w.csv"]
+
+
 def test_write_rejects_unknown_suffix(tmp_path):
     with pytest.raises(ValueError, match=r"use \.csv or \.json"):
         write_waypoints(tmp_path / "w.txt", np.eye(4)[None])
