@@ -1,4 +1,10 @@
-"""Publish a sweep: ``python -m train.aggregate --publish [--root runs/sweep]``.
+"""Publish results: the files behind ``python -m train.aggregate --publish [--root …]``
+and the rendering of ``docs/results.md`` (also ``python -m train.results``).
+
+The statistics are ``train.aggregate``'s; this module writes and renders what it is given
+and imports neither ``train.aggregate`` nor ``train.results`` (both import it): the sweep's
+layout (``train.sweep``) → the statistics (``train.aggregate``) → publication (here), and
+the earlier single-seed records (``train.results``) → publication.
 
 First every finished trial's records are archived in the repository
 (``docs/results/sweep/trials``, :func:`archive`), so sweeps on other machines and later
@@ -17,9 +23,10 @@ env id with baselines:
 
 Learned rows of the previous ``aggregate.json`` whose trials the archive does not hold are
 kept (:func:`carry_over`), so publishing one id's sweep leaves the others' rows as they were;
-then ``docs/results.md`` is rendered again (``train.results.render``), this sweep's
-tables first, and the README's results table (between ``README_BEGIN`` and
-``README_END``) is written from the same aggregate (:func:`write_readme`).
+then ``docs/results.md`` is rendered again (:func:`render`: this sweep's tables first, then
+the single-seed records ``docs/results/<EnvName>.json`` of the earlier ids), and the
+README's results table (between ``README_BEGIN`` and ``README_END``) is written from the
+same aggregate (:func:`write_readme`).
 """
 
 from __future__ import annotations
@@ -29,18 +36,21 @@ import shutil
 from pathlib import Path
 from typing import Any
 
-from ikbranch_gym.train.aggregate import RIVALS
+from ikbranch_gym.agents import PaperRule, RecedingDP
 from ikbranch_gym.train.sweep import ARCHIVE, env_name, run_dir
 
 ROOT = Path(__file__).resolve().parent.parent
-SWEEP_RESULTS = ROOT / "docs" / "results" / "sweep"
+#: The single-seed records of the earlier ids (``python -m train.results``) and their plots.
+RESULTS = ROOT / "docs" / "results"
+RESULTS_MD = ROOT / "docs" / "results.md"
+SWEEP_RESULTS = RESULTS / "sweep"
 MODELS = ROOT / "models"
 README = ROOT / "README.md"
 #: The README's generated results table sits between these two lines.
 README_BEGIN = "<!-- results: written by python -m train.aggregate --publish; do not edit -->"
 README_END = "<!-- /results -->"
-#: The learned policies' rivals in the goal checks.
-PAPER_RULE, RECEDING_DP = RIVALS
+#: The learned policies' rivals in the tables and the goal checks (``train.aggregate.RIVALS``).
+PAPER_RULE, RECEDING_DP = PaperRule.name, RecedingDP.name
 #: Ids whose goal is success ≥ 99 % and an IQM gap ≤ 2 % on held-out scenes.
 HEADLINE_GOALS = ("IKBranch/ToolTransfer-v1", "IKBranch/Anthropomorphic-v2")
 
@@ -57,6 +67,11 @@ def _percent(value) -> str:
         return "n/a"
     point, low, high = (100 * v for v in value)
     return f"{point:.1f} % [{low:.1f}, {high:.1f}]"
+
+
+def _share(value: float | None) -> str:
+    """A point value as a percentage (no interval)."""
+    return "n/a" if value is None else f"{100 * value:.1f} %"
 
 
 def _portable(command: str, root: Path) -> str:
@@ -294,8 +309,10 @@ def render_sweep(aggregate_path: Path = SWEEP_RESULTS / "aggregate.json") -> lis
         "tasks. **score**: per task (R − R_random)/(R_oracle − R_random), so the DP oracle "
         "is 1 and the uniform random policy 0; its IQM over runs × tasks (tasks on which "
         "random already attains the optimum carry no information and are left out). "
-        "**gap**: per task (R_oracle − R)/|R_oracle|, IQM (the trimmed mean drops the worst "
-        "quarter: read it with the success rate). **P(> rule)**: probability that the "
+        "**IQM gap**: the IQM over runs × tasks of the per-task gap (R_oracle − R)/|R_oracle| "
+        "(the trimmed mean drops the worst quarter: read it with the success rate and the "
+        "mean gap). **mean gap**: (mean R_oracle − mean R)/|mean R_oracle|, the means over "
+        "the same runs × tasks (a point value: no interval). **P(> rule)**: probability that the "
         "policy's score beats paper_rule's (receding_dp's) on a task, scores equal to 1e-9 "
         "tying (half). Brackets: 95 % "
         "stratified-bootstrap CIs over runs and tasks (rliable, `train/aggregate.py`). "
@@ -331,9 +348,9 @@ def render_sweep(aggregate_path: Path = SWEEP_RESULTS / "aggregate.json") -> lis
         lines += [f"### {env_id}", "",
                   f"{record['episodes']} held-out tasks, {record['informative_tasks']} "
                   f"informative; env kwargs {json.dumps(record['env_kwargs'])}.", "",
-                  "| policy | runs | steps | train min/run | score IQM | gap IQM | success | "
-                  "P(> paper_rule) | P(> receding_dp) | ms/decision |",
-                  "|---|---:|---:|---:|---|---|---|---|---|---:|"]
+                  "| policy | runs | steps | train min/run | score IQM | IQM gap | mean gap | "
+                  "success | P(> paper_rule) | P(> receding_dp) | ms/decision |",
+                  "|---|---:|---:|---:|---|---|---:|---|---|---|---:|"]
         for policy, row in record["policies"].items():
             steps = ", ".join(f"{n:,}" for n in row.get("timesteps", ()) if n)
             minutes = f"{row['train_minutes']:.1f}" if row.get("seeds") else ""
@@ -341,6 +358,7 @@ def render_sweep(aggregate_path: Path = SWEEP_RESULTS / "aggregate.json") -> lis
             lines.append(
                 f"| {policy} | {row['runs']} | {steps} | {minutes} | "
                 f"{_interval(row.get('score'))} | {_percent(row['gap'])} | "
+                f"{_share(row.get('mean_gap'))} | "
                 f"{_percent(row['success'])} | {_interval(improvement.get(PAPER_RULE))} | "
                 f"{_interval(improvement.get(RECEDING_DP))} | {row['decision_ms']:.2f} |")
         lines.append("")
@@ -364,7 +382,7 @@ def render_sweep(aggregate_path: Path = SWEEP_RESULTS / "aggregate.json") -> lis
 def readme_summary(records: dict[str, dict[str, Any]]) -> list[str]:
     """The README's results table: per id, each learned policy beside paper_rule and
     receding_dp (the full tables are docs/results.md's)."""
-    lines = ["| id | policy | seeds × steps | score IQM | success | gap IQM | "
+    lines = ["| id | policy | seeds × steps | score IQM | success | IQM gap | "
              "P(> paper_rule) | ms/decision |",
              "|---|---|---|---|---|---|---|---:|"]
     for env_id, record in records.items():
@@ -401,3 +419,81 @@ def write_readme(records: dict[str, dict[str, Any]], readme: Path = README) -> P
     lines[begin + 1:end] = readme_summary(records)
     readme.write_text("\n".join(lines))
     return readme
+
+
+# ----------------------------------------------------------------------------- docs/results.md
+#: The columns of a single-seed table: title, key of the record's metrics, format.
+METRICS = (("success", "success_rate", "{:.0%}"), ("return", "mean_return", "{:.2f}"),
+           ("travel °", "mean_travel_deg", "{:.0f}"), ("time s", "mean_time", "{:.2f}"),
+           ("collisions", "collision_rate", "{:.0%}"), ("invalid", "invalid_rate", "{:.0%}"),
+           ("mean gap", "mean_gap", "{:.2%}"), ("ms/decision", "decision_ms", "{:.2f}"))
+#: Earlier names of a metric in stored records (the mean gap was ``optimality_gap``).
+_FORMERLY = {"mean_gap": "optimality_gap"}
+
+
+def _metric(metrics: dict[str, Any], key: str) -> Any:
+    return metrics[key] if key in metrics else metrics[_FORMERLY[key]]
+
+
+def _one_of(values: set[Any]) -> str:
+    return ", ".join(str(value) for value in sorted(values))
+
+
+def render_single_seed(results: Path = RESULTS) -> list[str]:
+    """The part of docs/results.md with every single-seed record ``results/*.json``."""
+    records = [(path, json.loads(path.read_text())) for path in sorted(results.glob("*.json"))]
+    episodes = _one_of({record["episodes"] for _, record in records})
+    seeds = _one_of({record["eval_seed"] for _, record in records})
+    lines = [
+        "## Single-seed results of the earlier ids (`python -m train.results`)",
+        "",
+        "The ids of the first generation (fixed clutter `scene_seed=0` shared by training and "
+        "evaluation, the `ladder` observation). Every row: one policy on the same "
+        f"{episodes} held-out tasks (seeds {seeds} …), deterministic actions. "
+        "`mean gap` = (oracle mean return − policy mean return) / |oracle mean return|. "
+        "Trained models are in `models/<EnvName>/<algo>.zip` (seed 0, the budget of "
+        "`configs/hyperparams.yml`); `tests/train/test_results.py` re-evaluates them and checks "
+        "these numbers. The exact commands are under each table.",
+        "",
+    ]
+    for path, record in records:
+        lines += [f"### {record['env']}", ""]
+        header = ["policy", *(title for title, _, _ in METRICS)]
+        lines += ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+        for name, metrics in record["policies"].items():
+            cells = [Path(name).stem + f" ({Path(name).parent.name})" if "/" in name else name]
+            for _, key, fmt in METRICS:
+                value = _metric(metrics, key)
+                cells.append("n/a" if value is None else fmt.format(value))
+            lines.append("| " + " | ".join(cells) + " |")
+        lines.append("")
+        for algo, info in record["training"].items():
+            wall = "" if info["wall_minutes"] is None else f", {info['wall_minutes']:.1f} min"
+            lines.append(f"- {algo}: {info['timesteps']:,} steps, {info['n_envs']} envs, "
+                         f"seed {info['seed']}{wall}: `{info['command']}`")
+        lines += [f"- evaluation: `{record['evaluate_command']}`", ""]
+        plot = path.with_suffix(".png")
+        if plot.exists():
+            lines += [f"![{record['env']}](results/{plot.name})", ""]
+    return lines
+
+
+def render(results: Path = RESULTS) -> str:
+    """docs/results.md: the published sweep (``results/sweep/aggregate.json``) first, then
+    every single-seed record of the earlier ids (``results/*.json``)."""
+    lines = [
+        "# Results",
+        "",
+        "Generated by `python -m train.aggregate --publish` (the multi-seed sweep) and "
+        "`python -m train.results` (the earlier single-seed records); do not edit by hand.",
+        "",
+        *render_sweep(results / "sweep" / "aggregate.json"),
+        *render_single_seed(results),
+    ]
+    return "\n".join(lines)
+
+
+def write_results(target: Path = RESULTS_MD, results: Path = RESULTS) -> Path:
+    """Render docs/results.md (:func:`render`); returns its path."""
+    target.write_text(render(results))
+    return target

@@ -141,3 +141,30 @@ def test_committed_model_reproduces_its_published_row(record, algo, monkeypatch)
     for metric in ("success_rate", "mean_return", "mean_travel", "mean_time",
                    "collision_rate", "invalid_rate"):
         assert again[metric] == pytest.approx(published[metric], abs=1e-9), metric
+
+
+def test_the_single_seed_tables_name_the_mean_gap(tmp_path):
+    # Records name the mean gap mean_gap (optimality_gap when written before): the table
+    # shows it as "mean gap", the legend defines it.
+    from ikbranch_gym.train.publish import METRICS, render
+
+    def metrics(gap_key, gap):
+        return {"success_rate": 1.0, "mean_return": -2.0, "mean_travel_deg": 90.0,
+                "mean_time": 1.5, "collision_rate": 0.0, "invalid_rate": 0.0,
+                gap_key: gap, "decision_ms": 0.25}
+
+    training = {"ppo": {"timesteps": 1000, "n_envs": 1, "seed": 0, "wall_minutes": None,
+                        "command": "python -m train"}}
+    for name, key, gap in (("Old-v0", "optimality_gap", 0.125), ("New-v0", "mean_gap", None)):
+        (tmp_path / f"{name}.json").write_text(json.dumps({
+            "env": f"IKBranch/{name}", "eval_seed": TEST_SEED, "episodes": EVAL_EPISODES,
+            "training": training, "evaluate_command": "python -m train.evaluate",
+            "policies": {"dp_oracle": metrics(key, gap)}}))
+    text = render(tmp_path)
+    assert [title for title, _, _ in METRICS].count("mean gap") == 1
+    assert "| policy | success | return | travel ° | time s | collisions | invalid | mean gap |" \
+        " ms/decision |" in text
+    assert "| dp_oracle | 100% | -2.00 | 90 | 1.50 | 0% | 0% | 12.50% | 0.25 |" in text
+    assert "| dp_oracle | 100% | -2.00 | 90 | 1.50 | 0% | 0% | n/a | 0.25 |" in text
+    assert "`mean gap` = (oracle mean return − policy mean return) / |oracle mean return|" in text
+    assert f"the same {EVAL_EPISODES} held-out tasks (seeds {TEST_SEED} …)" in text

@@ -89,19 +89,21 @@ def test_tiny_sweep_writes_run_directories_and_resumes(tmp_path):
         ray.shutdown()
 
 
-def _synthetic_root(tmp_path, scores: np.ndarray, rival: np.ndarray):
-    """A sweep root whose 2 seeds of ``ppo`` score ``scores`` (2, T) per task: oracle
-    return 0, random −10, so R = 10·(score − 1); ``paper_rule`` scores ``rival``."""
+def _synthetic_root(tmp_path, scores: np.ndarray, rival: np.ndarray,
+                    oracle: np.ndarray | None = None):
+    """A sweep root whose seeds of ``ppo`` score ``scores`` (seeds, T) per task: oracle
+    return ``oracle`` (default 0), random 10 less, so R = oracle + 10·(score − 1);
+    ``paper_rule`` scores ``rival``."""
     tasks = scores.shape[1]
     env = "IKBranch/ToolTransfer-v1"
 
     def policy(returns, successes=None):
-        return {"returns": list(returns), "successes": list(successes or [True] * tasks),
-                "decision_ms": 1.0}
+        return {"returns": [float(r) for r in returns],
+                "successes": list(successes or [True] * tasks), "decision_ms": 1.0}
 
-    oracle = np.zeros(tasks)
-    baselines = {"dp_oracle": policy(oracle), "random": policy(np.full(tasks, -10.0)),
-                 "paper_rule": policy(10 * (rival - 1)), "receding_dp": policy(oracle)}
+    oracle = np.zeros(tasks) if oracle is None else oracle
+    baselines = {"dp_oracle": policy(oracle), "random": policy(oracle - 10.0),
+                 "paper_rule": policy(oracle + 10 * (rival - 1)), "receding_dp": policy(oracle)}
     record = {"env": env, "task_seed": 0, "env_kwargs": {}, "policies": baselines}
     path = sweep.baselines_path(tmp_path, env)
     path.parent.mkdir(parents=True)
@@ -110,7 +112,7 @@ def _synthetic_root(tmp_path, scores: np.ndarray, rival: np.ndarray):
         successes = [bool(s > 0.5) for s in row]
         trial = {"env": env, "algo": "ppo", "seed": seed, "timesteps": 1000,
                  "train_minutes": 1.0 + seed, "oracle": policy(oracle),
-                 "policy": policy(10 * (row - 1), successes)}
+                 "policy": policy(oracle + 10 * (row - 1), successes)}
         directory = sweep.run_dir(tmp_path, env, "ppo", seed)
         directory.mkdir(parents=True)
         (directory / "evaluation.json").write_text(json.dumps(trial))
@@ -141,6 +143,52 @@ def test_aggregation_recovers_known_iqm_intervals_and_improvement(tmp_path):
     per_run = scores.mean(axis=1)
     assert learned["representative_seed"] == int(np.argmin(np.abs(per_run - point)))
     assert learned["timesteps"] == [1000] and learned["train_minutes"] == 1.5
+
+
+def test_the_iqm_gap_and_the_mean_gap_are_the_projects_two_gaps(tmp_path):
+    # IQM gap: the IQM over runs × tasks of (R_oracle,i − R_i)/|R_oracle,i|; mean gap:
+    # (mean R_oracle − mean R)/|mean R_oracle|; both computed independently here.
+    rng = np.random.default_rng(3)
+    scores = rng.uniform(0.0, 1.0, size=(3, 80)) ** 0.2
+    oracle = -rng.uniform(5.0, 50.0, size=80)
+    env = _synthetic_root(tmp_path, scores, rival=np.full(80, 0.2), oracle=oracle)
+    record = aggregate.aggregate(tmp_path)[env]
+    returns = oracle + 10 * (scores - 1)
+    learned = record["policies"]["ppo"]
+    per_task = (oracle - returns) / np.abs(oracle)
+    assert learned["gap"][0] == pytest.approx(stats.trim_mean(per_task.ravel(), 0.25),
+                                              rel=1e-12)
+    assert learned["gap"][1] < learned["gap"][0] < learned["gap"][2]
+    expected = (oracle.mean() - returns.mean()) / abs(oracle.mean())
+    assert learned["mean_gap"] == pytest.approx(expected, rel=1e-12)
+    assert learned["mean_gap"] != pytest.approx(learned["gap"][0], rel=1e-3)  # not one number
+    rule = oracle + 10 * (0.2 - 1)
+    assert record["policies"]["paper_rule"]["mean_gap"] == pytest.approx(
+        (oracle.mean() - rule.mean()) / abs(oracle.mean()), rel=1e-12)
+    assert record["policies"]["dp_oracle"]["mean_gap"] == 0.0
+    # Rendered side by side, named as the legend names them.
+    from ikbranch_gym.train import publish
+
+    path = tmp_path / "aggregate.json"
+    path.write_text(json.dumps({env: record}))
+    lines = publish.render_sweep(path)
+    text = "\n".join(lines)
+    header = next(line for line in lines if line.startswith("| policy |"))
+    assert "| score IQM | IQM gap | mean gap | success |" in header
+    row = next(line for line in lines if line.startswith("| ppo |"))
+    cells = [cell.strip() for cell in row.split("|")[1:-1]]
+    titles = [cell.strip() for cell in header.split("|")[1:-1]]
+    assert cells[titles.index("mean gap")] == f"{100 * learned['mean_gap']:.1f} %"
+    gap = [100 * v for v in learned["gap"]]
+    assert cells[titles.index("IQM gap")] == f"{gap[0]:.1f} % [{gap[1]:.1f}, {gap[2]:.1f}]"
+    assert "**IQM gap**" in text and "**mean gap**" in text and "**gap**" not in text
+
+
+def test_the_mean_gap_without_a_scale():
+    assert aggregate.mean_gap(np.array([[-1.0, -3.0]]), np.array([-2.0, -2.0])) == 0.0
+    assert aggregate.mean_gap(np.array([[-3.0, -3.0]]), np.array([-2.0, -2.0])) == 0.5
+    assert aggregate.mean_gap(np.zeros((2, 3)), np.zeros(3)) == 0.0
+    assert aggregate.mean_gap(np.full((2, 3), -1.0), np.zeros(3)) is None
 
 
 def test_a_rival_optimal_on_some_tasks_caps_the_probability_of_improvement(tmp_path):
@@ -301,6 +349,26 @@ def test_a_row_is_not_carried_over_onto_other_baselines(tmp_path):
     fresh[env]["policies"]["paper_rule"]["mean_return"] += 1.0
     with pytest.raises(ValueError, match=r"paper_rule differs .* re-run their trials"):
         publish.carry_over(fresh, published)
+
+
+def test_a_trials_record_is_written_whole(tmp_path, monkeypatch):
+    # A record appears complete or not at all (a resumed sweep skips a trial whose record
+    # exists): its folders made, JSON with a final newline, nothing left beside it.
+    import os
+
+    path = sweep.run_dir(tmp_path, "IKBranch/ToolTransfer-v1", "ppo", 0) / "evaluation.json"
+    sweep._write_json(path, {"seed": 0, "returns": [-1.5]})
+    assert path.read_text() == '{\n "seed": 0,\n "returns": [\n  -1.5\n ]\n}\n'
+    assert [p.name for p in path.parent.iterdir()] == ["evaluation.json"]
+
+    def interrupted(source, target):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(os, "replace", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        sweep._write_json(path, {"seed": 0, "returns": [-2.5]})
+    assert json.loads(path.read_text())["returns"] == [-1.5]
+    assert [p.name for p in path.parent.iterdir()] == ["evaluation.json"]
 
 
 def test_the_trial_archive_is_committed_not_ignored():

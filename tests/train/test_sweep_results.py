@@ -17,8 +17,10 @@ from ikbranch_gym.train.publish import (
     README,
     README_BEGIN,
     README_END,
+    RESULTS_MD,
     SWEEP_RESULTS,
     readme_summary,
+    render,
 )
 from tests.train.test_results import judged_success
 
@@ -53,6 +55,28 @@ def test_the_sweep_is_published_with_its_models():
         assert policy["success_rate"] == pytest.approx(np.mean(policy["successes"]), abs=1e-12)
         assert policy["mean_return"] == pytest.approx(np.mean(policy["returns"]), abs=1e-9)
         assert np.all(np.array(policy["returns"]) <= np.array(trial["oracle"]["returns"]) + 1e-9)
+
+
+def test_the_published_mean_gaps_follow_from_the_archived_returns():
+    # The mean gap of every row, from the per-task returns the archive holds (the
+    # learned rows' every seed, the baselines' one run) against the oracle's.
+    from ikbranch_gym.train.aggregate import load
+    from ikbranch_gym.train.sweep import ARCHIVE
+
+    archive = load(ARCHIVE)
+    for env_id, record in json.loads(AGGREGATE.read_text()).items():
+        baselines = archive[env_id]["baselines"]["policies"]
+        oracle = np.array(baselines["dp_oracle"]["returns"])
+        for name, row in record["policies"].items():
+            runs = ([trial["policy"]["returns"] for trial in archive[env_id]["trials"][name]]
+                    if row.get("seeds") else [baselines[name]["returns"]])
+            expected = (oracle.mean() - np.mean(runs)) / abs(oracle.mean())
+            assert row["mean_gap"] == pytest.approx(expected, rel=1e-12, abs=1e-15), (
+                env_id, name)
+
+
+def test_docs_results_md_is_rendered_from_the_published_records():
+    assert RESULTS_MD.read_text() == render()
 
 
 def test_the_readme_shows_the_published_aggregate():
