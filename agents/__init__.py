@@ -15,6 +15,10 @@ name               policy
 ``fixed``          one branch (``branch``: index or label), else the nearest valid one
 ================== =====================================================================
 
+``agents.evaluation.evaluate`` plays any of them, an SB3 model object or any callable
+``policy(obs, mask) -> action`` on the same held-out tasks beside the DP oracle, in an env
+made from an id or a factory and wrapped as the policy was trained (its docstring).
+
 ``agents.branch_policy`` holds the SB3 policy classes that score every branch with one
 shared network (``policy: BranchPolicy`` in ``configs/``); like ``agents.sb3`` it is
 imported on demand.

@@ -3,11 +3,14 @@
 The analytic baselines do not learn from observations: they read the task (candidates,
 validity, prices) from the :class:`~envs.ik_branch_env.IKBranchEnv` they were made with,
 exactly as an offline planner would. ``predict`` still takes SB3's arguments, so one loop
-evaluates baselines and trained models alike.
+evaluates baselines and trained models alike. Which branches a policy may choose comes
+from the outermost wrapper (:func:`action_mask`): a wrapper that forbids a branch is obeyed
+by every policy, the baselines included.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any, Protocol
 
 import gymnasium as gym
@@ -28,6 +31,31 @@ class Policy(Protocol):
         deterministic: bool = True,
         action_masks: np.ndarray | None = None,
     ) -> tuple[np.ndarray, Any]: ...
+
+
+def action_mask(env: gym.Env, info: Mapping[str, Any] | None = None) -> np.ndarray | None:
+    """(K,) bool: the branches a policy may choose now, as the outermost wrapper has them.
+
+    ``action_masks()`` found through the wrappers (``env.get_wrapper_attr``: a wrapper's
+    own method before the env's; sb3-contrib's protocol, so what MaskablePPO trained on),
+    narrowed by ``info["action_mask"]`` of the latest ``reset`` or ``step`` when ``info``
+    is given (a wrapper may rewrite either; a branch is offered when both allow it). None
+    when the env offers neither. Never ``env.unwrapped``: that would skip the wrappers.
+    """
+    mask: np.ndarray | None = None
+    try:
+        method = env.get_wrapper_attr("action_masks")
+    except AttributeError:
+        method = None
+    if callable(method):
+        mask = np.asarray(method(), dtype=bool)
+    if info is not None and "action_mask" in info:
+        reported = np.asarray(info["action_mask"], dtype=bool)
+        if mask is not None and mask.shape != reported.shape:
+            raise ValueError(f"action_masks() has shape {mask.shape} but info['action_mask'] "
+                             f"{reported.shape}: a wrapper changed one and not the other")
+        mask = reported if mask is None else mask & reported
+    return mask
 
 
 def unwrap(env: gym.Env) -> IKBranchEnv:
@@ -52,6 +80,10 @@ class Baseline:
 
     def __init__(self, env: gym.Env) -> None:
         self.env = unwrap(env)
+        #: The env as given, wrappers included: its observations are what ``predict`` gets
+        #: and its outermost wrapper's ``action_masks()`` the branches it may choose.
+        self.wrapped = env
+        self.observation_shape = env.observation_space.shape
         self._task: Task | None = None
         self._last_index = 0
 
@@ -69,7 +101,7 @@ class Baseline:
         An unbatched observation gives a 0-d action array, a batch of one a (1,) array
         (SB3's convention). The baseline acts on its own env, so larger batches are refused.
         """
-        shape = self.env.observation_space.shape
+        shape = self.observation_shape
         assert shape is not None  # IKBranchEnv's observation space is a Box
         batched = np.ndim(observation) == len(shape) + 1
         if batched and np.shape(observation)[0] != 1:
@@ -86,8 +118,10 @@ class Baseline:
         if env.index >= env.task.n_waypoints:  # episode over: any action, as the env allows
             branch = 0
         else:
-            mask = env.action_masks()
-            if action_masks is not None:  # SB3 semantics: the caller's mask has the last word
+            outer = action_mask(self.wrapped)  # a wrapper may forbid branches
+            mask = env.action_masks() if outer is None else outer
+            # SB3 semantics: the caller's mask has the last word (narrowing, never widening).
+            if action_masks is not None:
                 mask = mask & np.asarray(action_masks, dtype=bool).reshape(-1)
             branch = int(self.choose(env.index, mask))
             if not mask[branch]:

@@ -23,7 +23,7 @@ from sb3_contrib.common.maskable.policies import MaskableActorCriticPolicy
 from stable_baselines3 import PPO
 from stable_baselines3.common.base_class import BaseAlgorithm
 
-from .base import unwrap
+from .base import action_mask
 
 
 def model_class(path: str | Path) -> type[BaseAlgorithm]:
@@ -74,13 +74,27 @@ def load_model(algorithm: type[BaseAlgorithm], path: str | Path, **kwargs: Any) 
 
 
 class SB3Policy:
-    """An SB3 model with the baselines' ``predict``; masks reach MaskablePPO only."""
+    """An SB3 model with the baselines' ``predict``; masks reach MaskablePPO only.
+
+    Any SB3 algorithm works (PPO, MaskablePPO, A2C, DQN, …: whatever has ``predict``); a
+    model whose policy can mask (MaskablePPO's) is given the masks the caller passes, else
+    those of ``env``'s outermost wrapper (``agents.base.action_mask``).
+    """
 
     def __init__(self, model: BaseAlgorithm, env: gym.Env | None = None, name: str = "") -> None:
         self.model = model
-        self.env = None if env is None else unwrap(env)
+        self.env = env
         self.name = name
         self.maskable = isinstance(model.policy, MaskableActorCriticPolicy)
+
+    @classmethod
+    def wrap(cls, model: BaseAlgorithm, env: gym.Env | None = None, name: str = "") -> SB3Policy:
+        """An SB3 model object, checked against ``env``'s observations (wrappers included)."""
+        if not isinstance(model, BaseAlgorithm):
+            raise TypeError(f"expected an SB3 model, got {type(model).__name__}")
+        name = name or type(model).__name__
+        check_observations(model, env, name)
+        return cls(model, env, name=name)
 
     @classmethod
     def load(cls, path: str | Path, env: gym.Env | None = None) -> SB3Policy:
@@ -89,12 +103,7 @@ class SB3Policy:
         model = load_model(algorithm, path, device="cpu")
         if algorithm is MaskablePPO and not isinstance(model.policy, MaskableActorCriticPolicy):
             raise ValueError(f"{path}: recorded as MaskablePPO but its policy cannot mask")
-        if env is not None and model.observation_space.shape != env.observation_space.shape:
-            raise ValueError(
-                f"{path}: trained on observations of shape {model.observation_space.shape}, "
-                f"the env gives {env.observation_space.shape} (same env id and --env-kwargs, "
-                "e.g. lookahead, as in training?)"
-            )
+        check_observations(model, env, str(path))
         return cls(model, env, name=Path(path).stem)
 
     def predict(
@@ -108,9 +117,19 @@ class SB3Policy:
         if not self.maskable:
             return self.model.predict(observation, state, episode_start, deterministic)
         if action_masks is None and self.env is not None:
-            action_masks = self.env.action_masks()
+            action_masks = action_mask(self.env)
         # A maskable policy: the model is a MaskablePPO, whose predict takes the masks.
         assert isinstance(self.model, MaskablePPO)
         return self.model.predict(
             observation, state, episode_start, deterministic, action_masks=action_masks
+        )
+
+
+def check_observations(model: BaseAlgorithm, env: gym.Env | None, what: str) -> None:
+    """``ValueError`` unless ``model`` was trained on observations of ``env``'s shape."""
+    if env is not None and model.observation_space.shape != env.observation_space.shape:
+        raise ValueError(
+            f"{what}: trained on observations of shape {model.observation_space.shape}, "
+            f"the env gives {env.observation_space.shape} (same env id and --env-kwargs, "
+            "e.g. lookahead, and the same wrappers as in training?)"
         )

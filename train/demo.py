@@ -13,7 +13,10 @@ analytic ones on the milling cell.
    can undo a solved policy (measured: a run optimal on every validation round from 20k
    to 140k steps fell to 82 % success in its last 10k), and the demo's tasks
    (``DEMO_SEED``) are disjoint from the validation tasks the choice was made on. The
-   multi-seed results of docs/results.md evaluate the final models.
+   multi-seed results of docs/results.md evaluate the final models. The gaps are against
+   ``dp_oracle`` on the same tasks: ``mean gap`` = (mean R_oracle − mean R) /
+   |mean R_oracle|, ``IQM gap`` = the interquartile mean over tasks of
+   (R_oracle,i − R_i) / |R_oracle,i| (``python -m train.evaluate``).
 4. Writes ``evaluation.json``, ``comparison.png``, ``learning_curve.png`` (held-out return
    during training) and ``episode.gif`` (the learned policy on the first held-out task)
    into the run directory.
@@ -63,17 +66,18 @@ def episode_gif(model_path: Path, seed: int, out: Path) -> None:
     """Play the learned policy on one task and animate every move in joint space."""
     import gymnasium as gym
 
+    from ikbranch_gym.agents.base import action_mask, unwrap
     from ikbranch_gym.agents.sb3 import SB3Policy
     from ikbranch_gym.envs.render import SceneRenderer, linear_path, save_gif
 
     env = gym.make(ENV_ID)
     policy = SB3Policy.load(model_path, env)
-    obs, _ = env.reset(seed=seed)
-    base = env.unwrapped
+    obs, info = env.reset(seed=seed)
+    base = unwrap(env)  # where the arm stands, for the frames
     configurations, done = [base.q.copy()], False
     while not done:
-        action, _ = policy.predict(obs, action_masks=base.action_masks(), deterministic=True)
-        obs, _, terminated, truncated, _ = env.step(int(action))
+        action, _ = policy.predict(obs, action_masks=action_mask(env, info), deterministic=True)
+        obs, _, terminated, truncated, info = env.step(int(action))
         configurations.append(base.q.copy())
         done = terminated or truncated
     renderer = SceneRenderer(base.model, width=480, height=360, frame_qs=configurations)

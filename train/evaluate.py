@@ -5,12 +5,24 @@
         --json results.json --plot results.png
 
 ``--policy`` is repeatable: a baseline name (``paper_rule``, ``paper_pair_rule``,
-``dp_oracle``, ``receding_dp[:H]``, ``random[:SEED]``, ``fixed[:BRANCH]``) or an SB3 model
-zip (PPO or MaskablePPO, recognised from the file). The DP oracle always runs: the
-optimality gap is measured against it. Episode e of every policy uses task seed S + e;
-S defaults to ``envs.seeds.TEST_SEED``, beyond every training run's tasks, and an id that
-draws a clutter per episode plays held-out scenes (``HELD_OUT_SCENES``) unless
-``--env-kwargs`` sets ``scene_seeds``.
+``dp_oracle``, ``receding_dp[:H]``, ``random[:SEED]``, ``fixed[:BRANCH]``), an SB3 model
+zip (PPO or MaskablePPO, recognised from the file), or ``MODULE:ATTR`` (``MODULE`` a module
+importable from here or the working directory, or a ``.py`` file): ``ATTR`` is a callable
+``policy(obs, mask) -> action`` (``mask`` the (K,) bool array of the branches allowed), a
+factory of one (a class, or a function called with no argument), or an SB3 model object.
+``--wrapper MODULE:ATTR`` (repeatable, applied in order) wraps every evaluated env in a
+Gymnasium wrapper class or a callable ``env -> env``: a policy trained under a wrapper is
+evaluated under it. Every policy plays the same wrapped env and chooses among the branches
+its outermost wrapper allows (``action_masks()`` through the wrappers, narrowed by
+``info["action_mask"]``).
+
+The DP oracle always runs: the gaps are measured against it on the same tasks. ``mean
+gap`` = (mean R_oracle − mean R) / |mean R_oracle| over the evaluated tasks; ``IQM gap`` =
+the interquartile mean over tasks of (R_oracle,i − R_i) / |R_oracle,i| (tasks where the
+oracle's return is 0 are left out, and the table says how many). Episode e of every policy
+uses task seed S + e; S defaults to ``envs.seeds.TEST_SEED``, beyond every training run's
+tasks, and an id that draws a clutter per episode plays held-out scenes
+(``HELD_OUT_SCENES``) unless ``--env-kwargs`` sets ``scene_seeds``.
 """
 
 from __future__ import annotations
@@ -20,7 +32,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from ikbranch_gym.agents.evaluation import evaluate
+from ikbranch_gym.agents.evaluation import evaluate, resolve, with_gaps
 from ikbranch_gym.envs.seeds import TEST_SEED, held_out
 
 COLUMNS = (
@@ -32,20 +44,30 @@ COLUMNS = (
     ("time s", "{:.2f}"),
     ("collision", "{:.0%}"),
     ("invalid", "{:.0%}"),
-    ("gap", "{}"),
+    ("mean gap", "{}"),
+    ("IQM gap", "{}"),
     ("ms/step", "{:.3f}"),
 )
 
 
+def _percent(value: float | None) -> str:
+    return "n/a" if value is None else f"{value:.2%}"
+
+
 def table(results: dict[str, Any]) -> str:
-    """The results as an aligned text table, one row per policy."""
+    """The results as an aligned text table, one row per policy (files written before
+    ``mean_gap`` and ``iqm_gap`` existed are read too: ``agents.evaluation.with_gaps``).
+    A line under the table says how many tasks the IQM gap left out, if any."""
+    results = with_gaps(results)
     rows = [[title for title, _ in COLUMNS]]
+    skipped = 0
     for name, m in results["policies"].items():
-        gap = "n/a" if m["optimality_gap"] is None else f"{m['optimality_gap']:.2%}"
+        skipped = max(skipped, m.get("iqm_gap_skipped") or 0)
         values = (
             name, m["success_rate"], f"{m['mean_return']:.3f} ± {m['std_return']:.3f}",
             m["mean_travel"], m["mean_travel_deg"], m["mean_time"], m["collision_rate"],
-            m["invalid_rate"], gap, m["decision_ms"],
+            m["invalid_rate"], _percent(m["mean_gap"]), _percent(m["iqm_gap"]),
+            m["decision_ms"],
         )
         rows.append([fmt.format(v) for (_, fmt), v in zip(COLUMNS, values, strict=True)])
     widths = [max(len(row[c]) for row in rows) for c in range(len(COLUMNS))]
@@ -53,6 +75,9 @@ def table(results: dict[str, Any]) -> str:
                        for c, (cell, w) in enumerate(zip(row, widths, strict=True)))
              for row in rows]
     lines.insert(1, "  ".join("-" * w for w in widths))
+    if skipped:
+        lines.append(f"IQM gap: {skipped} of {results['episodes']} tasks left out (the "
+                     "oracle's return is 0 there: no scale to measure a shortfall by)")
     return "\n".join(lines)
 
 
@@ -97,7 +122,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--env-kwargs", type=json.loads, default={},
                         help='JSON dict of env arguments, e.g. \'{"n_waypoints": 12}\'')
     parser.add_argument("--policy", action="append", required=True, dest="policies",
-                        help="baseline name or SB3 model .zip (repeatable)")
+                        help="baseline name, SB3 model .zip or MODULE:ATTR (repeatable)")
+    parser.add_argument("--wrapper", action="append", default=[], dest="wrappers",
+                        metavar="MODULE:ATTR",
+                        help="wrap every evaluated env: a Gymnasium wrapper class or a "
+                             "callable env -> env (repeatable, applied in order)")
     parser.add_argument("--episodes", type=int, default=20)
     parser.add_argument("--seed", type=int, default=TEST_SEED,
                         help=f"first task seed (default {TEST_SEED}: held out from training)")
@@ -111,13 +140,24 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     return args
 
 
+def _wrapper(spec: str) -> Any:
+    """The wrapper ``--wrapper MODULE:ATTR`` names; ``ValueError`` if it is none."""
+    wrapper = resolve(spec)
+    if not callable(wrapper):
+        raise ValueError(f"--wrapper {spec}: {type(wrapper).__name__} is no wrapper (a "
+                         "Gymnasium wrapper class or a callable env -> env)")
+    return wrapper
+
+
 def main(argv: list[str] | None = None) -> dict[str, Any]:
     args = parse_args(argv)
     try:
+        wrappers = [_wrapper(spec) for spec in args.wrappers]
         results = evaluate(args.env, args.policies, args.episodes, args.seed,
-                           held_out(args.env, args.env_kwargs))
+                           held_out(args.env, args.env_kwargs), wrappers=wrappers)
     except ValueError as error:  # unknown policy, bad zip, mismatched env: a usage error
         raise SystemExit(f"error: {error}") from error
+    results["wrappers"] = list(args.wrappers)  # as given: MODULE:ATTR
     print(table(results))
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
