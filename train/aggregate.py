@@ -34,6 +34,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -49,7 +50,8 @@ ORACLE, RANDOM = DPOracle.name, RandomBranch.name
 RIVALS = (PaperRule.name, RecedingDP.name)
 
 
-def _estimate(scores: dict[str, Any], func, seed: int = 0) -> dict[str, tuple[float, float, float]]:
+def _estimate(scores: dict[str, Any], func: Callable[..., float],
+              seed: int = 0) -> dict[str, tuple[float, float, float]]:
     """{name: (point, low, high)} of ``func`` with rliable's stratified bootstrap, tasks
     resampled too: the held-out tasks are a sample of the task distribution, not a fixed
     benchmark suite."""
@@ -178,12 +180,13 @@ def summarise(root: Path, env_id: str, entry: dict[str, Any]) -> dict[str, Any]:
                               "informative_tasks": int(informative.sum()), "policies": {}}
     for name, run in runs.items():
         returns = run["returns"]
-        row = {"runs": len(returns), "seeds": seeds.get(name),
-               "success": _estimate({"x": run["successes"]}, metrics.aggregate_mean)["x"],
-               "gap": _estimate({"x": (oracle - returns) / scale}, _iqm)["x"],
-               "mean_gap": mean_gap(returns, oracle),
-               "mean_return": float(returns.mean()),
-               "decision_ms": float(run["decision_ms"].mean())}
+        row: dict[str, Any] = {
+            "runs": len(returns), "seeds": seeds.get(name),
+            "success": _estimate({"x": run["successes"]}, metrics.aggregate_mean)["x"],
+            "gap": _estimate({"x": (oracle - returns) / scale}, _iqm)["x"],
+            "mean_gap": mean_gap(returns, oracle),
+            "mean_return": float(returns.mean()),
+            "decision_ms": float(run["decision_ms"].mean())}
         if informative.any():
             score = (returns[:, informative] - random[informative]) / span[informative]
             row["score"] = _estimate({"x": score}, _iqm)["x"]

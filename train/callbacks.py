@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 from sb3_contrib.common.maskable.callbacks import MaskableEvalCallback
+from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 
 from ikbranch_gym.envs.files import write_atomically
@@ -15,7 +17,7 @@ LATEST = "latest.zip"
 REWARD_STATS = "vecnormalize.pkl"
 
 
-def atomic_save(model, path: str | Path) -> None:
+def atomic_save(model: BaseAlgorithm, path: str | Path) -> None:
     """Save ``model`` to ``path`` (a .zip) so that a crash never leaves a half-written file
     (``envs.files.write_atomically``: written beside it, then renamed)."""
     write_atomically(path, model.save)
@@ -56,7 +58,7 @@ class HeldOutEvalCallback(MaskableEvalCallback):
     ``best.json`` beside the best model.
     """
 
-    def __init__(self, *args, eval_seed: int, **kwargs) -> None:
+    def __init__(self, *args: Any, eval_seed: int, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self.eval_seed = eval_seed
 
@@ -76,8 +78,9 @@ class HeldOutEvalCallback(MaskableEvalCallback):
             self.eval_env.seed(self.eval_seed)
         best_before = self.best_mean_reward
         result = super()._on_step()
-        if self.best_mean_reward != best_before and self._record_path() is not None:
-            self._record_path().write_text(json.dumps(
+        record = self._record_path()
+        if self.best_mean_reward != best_before and record is not None:
+            record.write_text(json.dumps(
                 {"best_mean_reward": float(self.best_mean_reward),
                  "timesteps": int(self.num_timesteps)}
             ))

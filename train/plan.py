@@ -43,13 +43,17 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ikbranch_gym.agents import BASELINES
 from ikbranch_gym.agents.evaluation import ORACLE, parse_spec
 from ikbranch_gym.envs.files import write_all_atomically
+
+if TYPE_CHECKING:
+    from ikbranch_gym.envs.ik_branch_env import IKBranchEnv
+    from ikbranch_gym.envs.kinematics import Arm
 
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_UNSAFE = 0, 1, 2, 3
 #: The planner names ``--planner`` takes besides ``MODEL.zip``: the baselines
@@ -105,8 +109,8 @@ class PlanRequest:
         return {**kwargs, **self.env_kwargs}
 
 
-def make_env(request: PlanRequest):
-    """A fresh env of the request (``ValueError`` for any bad input it finds)."""
+def make_env(request: PlanRequest) -> IKBranchEnv:
+    """A fresh ``IKBranchEnv`` of the request (``ValueError`` for any bad input it finds)."""
     from ikbranch_gym.envs.ik_branch_env import IKBranchEnv
 
     return IKBranchEnv(**request.make_kwargs())
@@ -185,7 +189,7 @@ class PlanRun:
         return "; ".join(reasons) or "the episode did not succeed"
 
 
-def play(policy, env) -> tuple[tuple[Step, ...], float, bool, float]:
+def play(policy: Any, env: Any) -> tuple[tuple[Step, ...], float, bool, float]:
     """One deterministic episode of ``policy`` on ``env`` (as
     ``agents.evaluation.run_episode`` plays it), recorded step by step: (steps, return,
     success, decision seconds)."""
@@ -217,7 +221,7 @@ def play(policy, env) -> tuple[tuple[Step, ...], float, bool, float]:
     return tuple(steps), reward, success, decision
 
 
-def _contacts(base, before: np.ndarray, waypoint: int) -> dict[str, Any]:
+def _contacts(base: Any, before: np.ndarray, waypoint: int) -> dict[str, Any]:
     """What a colliding move hits: the exact check's contacts at its first colliding
     sample (``Step.contacts``, ``Step.contact_fraction``)."""
     if waypoint == 0 and base.task.free_start:  # the first pick: the configuration itself
@@ -274,7 +278,7 @@ def plan(request: PlanRequest) -> Plan:
     from ikbranch_gym.agents.evaluation import build_policy
     from ikbranch_gym.envs.tasks.waypoint_file import read_waypoints
 
-    first = make_env(request)  # fails early on bad input, before any planner is built
+    first: Any = make_env(request)  # fails early on bad input, before any planner is built
     specs = [ORACLE, *(spec for spec in request.planners if spec != ORACLE)]
     opened = [first]
     runs: dict[str, PlanRun] = {}
@@ -282,7 +286,8 @@ def plan(request: PlanRequest) -> Plan:
         for spec in dict.fromkeys(specs):  # untimed warm-up plays
             play(build_policy(spec, first, SEED)[1], first)
         for spec in specs:
-            opened.append(env := make_env(request))
+            env: Any = make_env(request)
+            opened.append(env)
             _, policy = build_policy(spec, env, SEED)
             key, copy = spec, 2
             while key in runs:  # the same spec twice: its own row
@@ -294,9 +299,8 @@ def plan(request: PlanRequest) -> Plan:
         for env in opened:
             env.close()
     base = first.unwrapped
-    waypoints = read_waypoints(request.waypoints,
-                               **dict(zip("abc", request.points_abc or (None,) * 3,
-                                          strict=True)))
+    a, b, c = request.points_abc or (None, None, None)
+    waypoints = read_waypoints(request.waypoints, a=a, b=b, c=c)
     task = base.task
     return Plan(
         request=request, runs=runs, chosen=request.planners[0], arm=base.arm,
@@ -319,7 +323,7 @@ def _display(values: np.ndarray, kinds: Sequence[str]) -> list[float]:
             for v, kind in zip(values, kinds, strict=True)]
 
 
-def csv_columns(arm) -> list[str]:
+def csv_columns(arm: Arm) -> list[str]:
     names, kinds = arm.joint_names, arm.joint_types
     return (["waypoint", "name", "branch", "label", *names,
              *(f"{n}_{_unit_suffix(k)}" for n, k in zip(names, kinds, strict=True)),
@@ -497,7 +501,8 @@ def animation_frames(plan: Plan, run: PlanRun | None = None, fps: float = 12.0,
     n = run.n_waypoints
     frames: list[Frame] = []
 
-    def frame(q, step: Step, travel: float, moving: bool, duration: float) -> Frame:
+    def frame(q: np.ndarray, step: Step, travel: float, moving: bool,
+              duration: float) -> Frame:
         # The CSV's 0-based waypoint index (of 0 … n − 1), then the file's name for it.
         where = f"{'to ' if moving else ''}waypoint {step.waypoint} of 0–{n - 1}"
         return Frame(
@@ -531,7 +536,7 @@ def animation_frames(plan: Plan, run: PlanRun | None = None, fps: float = 12.0,
     return frames
 
 
-def _font(size: int):
+def _font(size: int) -> Any:
     from PIL import ImageFont
 
     try:
@@ -617,6 +622,7 @@ def parse_tool(text: str | None) -> tuple[dict[str, Any] | None, Path | None]:
         return None, None
     if text.lstrip().startswith("{"):
         spec = _json_object(text, "--tool")
+        assert spec is not None  # the text is not None
         _check_mesh(spec, "--tool")
         return spec, None
     path = Path(text)
@@ -641,7 +647,7 @@ def parse_tool(text: str | None) -> tuple[dict[str, Any] | None, Path | None]:
     return spec, path
 
 
-def parse_start(text: str, degrees: bool, arm) -> np.ndarray | None:
+def parse_start(text: str, degrees: bool, arm: Arm) -> np.ndarray | None:
     """``--start``: ``free`` (None), ``home`` or comma-separated joint values (rad and m;
     with ``degrees``, deg and mm), checked against the limits (never wrapped)."""
     word = text.strip().lower()

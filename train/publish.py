@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -55,14 +56,14 @@ PAPER_RULE, RECEDING_DP = PaperRule.name, RecedingDP.name
 HEADLINE_GOALS = ("IKBranch/ToolTransfer-v1", "IKBranch/Anthropomorphic-v2")
 
 
-def _interval(value, fmt: str = "{:.3f}") -> str:
+def _interval(value: Sequence[float] | None, fmt: str = "{:.3f}") -> str:
     if value is None:
         return "n/a"
     point, low, high = value
     return f"{fmt.format(point)} [{fmt.format(low)}, {fmt.format(high)}]"
 
 
-def _percent(value) -> str:
+def _percent(value: Sequence[float] | None) -> str:
     if value is None:
         return "n/a"
     point, low, high = (100 * v for v in value)
@@ -168,11 +169,11 @@ def carry_over(fresh: dict[str, dict[str, Any]],
     probabilities of improvement were computed against those scores.
     ``ValueError`` otherwise. An id without archived baselines keeps its published record.
     """
-    merged = {}
+    merged: dict[str, dict[str, Any]] = {}
     for env_id in sorted(set(fresh) | set(published)):
         record, old = fresh.get(env_id), published.get(env_id)
-        if record is None or old is None:
-            merged[env_id] = record if old is None else old
+        if record is None or old is None:  # in one of them: as it is there
+            merged[env_id] = fresh[env_id] if old is None else old
             continue
         missing = [name for name in old["policies"] if name not in record["policies"]
                    or _fewer_seeds(record["policies"][name], old["policies"][name])]

@@ -18,6 +18,7 @@ import shutil
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 from ikbranch_gym.agents import BASELINES
 from ikbranch_gym.agents.evaluation import ORACLE, evaluate
@@ -43,11 +44,12 @@ def model_path(env_id: str, algo: str) -> Path:
     return MODELS / env_name(env_id) / f"{algo}.zip"
 
 
-def produce(env_id: str, algos: tuple[str, ...], seed: int = 0) -> dict:
+def produce(env_id: str, algos: tuple[str, ...], seed: int = 0) -> dict[str, Any]:
     """Train (where no committed model exists) and evaluate; returns the stored record."""
     from ikbranch_gym.train.hyperparams import hyperparams_for
 
-    record = {"env": env_id, "eval_seed": TEST_SEED, "episodes": EVAL_EPISODES, "training": {}}
+    record: dict[str, Any] = {"env": env_id, "eval_seed": TEST_SEED, "episodes": EVAL_EPISODES,
+                              "training": {}}
     stored = RESULTS / f"{env_name(env_id)}.json"
     # Re-evaluating a committed model keeps the training time measured when it was trained.
     trained = json.loads(stored.read_text())["training"] if stored.exists() else {}

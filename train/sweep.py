@@ -155,14 +155,14 @@ def trials(env_ids: list[str], algos: list[str], seeds: list[int], root: Path,
     return specs
 
 
-def _trial_name(trial) -> str:
+def _trial_name(trial: Any) -> str:
     spec = trial.config["trial"]
     seed = f"-seed{spec['seed']}" if "seed" in spec else ""
     return f"{env_name(spec['env_id'])}-{spec['algo']}{seed}-{trial.trial_id}"
 
 
 def sweep(specs: list[dict[str, Any]], *, address: str | None = None,
-          cpus_per_trial: float = 1.0, max_failures: int = 2, verbose: int = 1):
+          cpus_per_trial: float = 1.0, max_failures: int = 2, verbose: int = 1) -> Any:
     """Run ``specs`` as Ray Tune trials; returns Tune's ``ResultGrid``."""
     os.environ.setdefault("RAY_CHDIR_TO_TRIAL_DIR", "0")  # run directories are absolute
     import ray

@@ -21,13 +21,17 @@ nothing else here, because contacts between any two collision geoms are counted.
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import cast
 
 import mujoco
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ikbranch_gym.envs.kinematics import Arm
+from ikbranch_gym.envs.kinematics.anthropomorphic import AnthropomorphicArm
+from ikbranch_gym.envs.kinematics.spherical import SphericalArm
 
 #: Geom groups: MuJoCo's renderer shows groups 0–2 by default, so collision geoms (3) stay
 #: hidden unless asked for.
@@ -87,12 +91,12 @@ def add_part(
     body: mujoco.MjsBody,
     name: str,
     kind: str,
-    size,
-    rgba,
+    size: ArrayLike,
+    rgba: Sequence[float],
     *,
-    fromto=None,
-    pos=None,
-    quat=None,
+    fromto: ArrayLike | None = None,
+    pos: ArrayLike | None = None,
+    quat: ArrayLike | None = None,
 ) -> None:
     """Add one link part as a visual geom ``<name>_vis`` and a collision geom ``<name>``.
 
@@ -126,7 +130,8 @@ def add_part(
             geom.density = 500.0  # hollow steel links, roughly
 
 
-def _cylinder_to_primitive(geom: mujoco.MjsGeom, size: np.ndarray, fromto) -> None:
+def _cylinder_to_primitive(geom: mujoco.MjsGeom, size: np.ndarray,
+                           fromto: ArrayLike | None) -> None:
     radius = size[0]
     if fromto is not None:
         ends = np.asarray(fromto, dtype=float).reshape(2, 3)
@@ -186,7 +191,8 @@ def compile_spec(spec: mujoco.MjSpec,
     return spec.compile()
 
 
-def add_static_body(spec: mujoco.MjSpec, name: str, parent=None) -> mujoco.MjsBody:
+def add_static_body(spec: mujoco.MjSpec, name: str,
+                    parent: mujoco.MjsBody | None = None) -> mujoco.MjsBody:
     """A body without joints under ``parent`` (default the world): fixed in the world."""
     body = (spec.worldbody if parent is None else parent).add_body()
     body.name = name
@@ -194,7 +200,8 @@ def add_static_body(spec: mujoco.MjSpec, name: str, parent=None) -> mujoco.MjsBo
 
 
 def add_link(
-    parent: mujoco.MjsBody, arm: Arm, index: int, axis, pos=(0.0, 0.0, 0.0)
+    parent: mujoco.MjsBody, arm: Arm, index: int, axis: ArrayLike,
+    pos: ArrayLike = (0.0, 0.0, 0.0),
 ) -> mujoco.MjsBody:
     """Child body ``link_<joint>`` at ``pos`` carrying the arm's joint ``index``.
 
@@ -234,7 +241,7 @@ def add_spherical_wrist(
     arm: Arm,
     first: int,
     tool: bool,
-    pos=(0.0, 0.0, 0.0),
+    pos: ArrayLike = (0.0, 0.0, 0.0),
 ) -> None:
     """The papers' Y–X–Y wrist (joints ``first``..``first+2``), ``ee`` at the wrist centre.
 
@@ -314,7 +321,8 @@ def build_cartesian(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> ArmTre
     return tree
 
 
-def _column_lift_turn_radial(spec: mujoco.MjSpec, arm: Arm, tree: ArmTree, radius: float):
+def _column_lift_turn_radial(spec: mujoco.MjSpec, arm: Arm, tree: ArmTree,
+                             radius: float) -> mujoco.MjsBody:
     """The positioning part shared by the cylindrical arms: s1 up the fixed column, φ1
     about Z0, s2 radially along the arm's +y; returns the radial slide's body."""
     lim = arm.joint_limits
@@ -380,6 +388,7 @@ def build_cylindrical4(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> Arm
 def build_spherical(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> ArmTree:
     """φ1 about Z0, shoulder at (0, 0, l1), elevation φ2 about x, radial slide s1 along the
     boom's y, then the Y–X–Y wrist: O = (0, 0, l1) + Rz(φ1)·Rx(φ2)·(0, s1, 0)."""
+    arm = cast(SphericalArm, arm)
     lim = arm.joint_limits
     tree = ArmTree()
     base = add_static_body(spec, "base")
@@ -407,6 +416,7 @@ def build_spherical(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> ArmTre
 def build_anthropomorphic(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> ArmTree:
     """φ1 about Z0 (column), shoulder at (0, 0, l1), φ2 and φ3 about local x, upper arm
     (l2) and forearm (l3) along local y, then the Y–X–Y wrist at the forearm's end."""
+    arm = cast(AnthropomorphicArm, arm)
     tree = ArmTree()
     base = add_static_body(spec, "base")
     add_part(base, "plinth", "cylinder", [0.3], DARK, fromto=[0, 0, 0, 0, 0, 0.3])

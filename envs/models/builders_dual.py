@@ -19,11 +19,14 @@ continuing link 4 outwards along its axis from the ``link4`` frame.
 from __future__ import annotations
 
 import itertools
+from typing import cast
 
 import mujoco
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ikbranch_gym.envs.kinematics import Arm
+from ikbranch_gym.envs.kinematics.dual import DualPprPrrArm, DualRrpRppArm, DualRrrPppArm
 
 from .builders import (
     DARK,
@@ -48,7 +51,7 @@ BASE_HEIGHT = {"dual_rrp_rpp": 0.8, "dual_rrr_ppp": 0.3, "dual_ppr_prr": 0.5}
 TOWER_OFFSET = 0.2
 
 
-def add_frame_site(body: mujoco.MjsBody, name: str, pos=(0.0, 0.0, 0.0)) -> None:
+def add_frame_site(body: mujoco.MjsBody, name: str, pos: ArrayLike = (0.0, 0.0, 0.0)) -> None:
     """A site oriented as ``body``'s frame at ``pos``."""
     site = body.add_site()
     site.name = name
@@ -56,7 +59,8 @@ def add_frame_site(body: mujoco.MjsBody, name: str, pos=(0.0, 0.0, 0.0)) -> None
     site.size = np.array([0.03, 0.0, 0.0])
 
 
-def add_tool(spec: mujoco.MjSpec, tree: ArmTree, body: mujoco.MjsBody, start, direction) -> None:
+def add_tool(spec: mujoco.MjSpec, tree: ArmTree, body: mujoco.MjsBody, start: ArrayLike,
+             direction: ArrayLike) -> None:
     """The held tool, welded to ``body``, from ``start`` along the unit ``direction``."""
     start, direction = np.asarray(start, dtype=float), np.asarray(direction, dtype=float)
     holder = body.add_body()  # welded: moves with its parent, named for reports
@@ -66,7 +70,8 @@ def add_tool(spec: mujoco.MjSpec, tree: ArmTree, body: mujoco.MjsBody, start, di
     tree.tool_body = holder.name
 
 
-def _segmented_box(body: mujoco.MjsBody, name: str, lo, hi, axis: int, step=0.5) -> None:
+def _segmented_box(body: mujoco.MjsBody, name: str, lo: ArrayLike, hi: ArrayLike, axis: int,
+                   step: float = 0.5) -> None:
     """The box from corner ``lo`` to ``hi`` as parts ``<name>0``, … at most ``step`` long
     along ``axis``."""
     lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
@@ -94,6 +99,7 @@ def build_dual_rrp_rpp(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> Arm
     x2, whose tip is C3 (``link3``). Arm 2: a turntable about Oz with its column beside
     the axis; the lift s5 carries the ram s4 along x6 at the lateral offset b0, whose tip
     is C4 (``link4``). O stands 0.8 m above the floor."""
+    arm = cast(DualRrpRppArm, arm)
     lim = arm.joint_limits
     height = BASE_HEIGHT[arm.name]
     joint = {name: index for index, name in enumerate(arm.joint_names)}
@@ -157,6 +163,7 @@ def build_dual_rrr_ppp(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> Arm
     past the tower, its tip pointing −x towards arm 1 at C4 = (s6, b0 + s4, h + s5)
     (``link4``). O stands 0.3 m above the floor, so the ram's lowest stroke (C4 level
     with O) clears the rails."""
+    arm = cast(DualRrrPppArm, arm)
     lim = arm.joint_limits
     height = BASE_HEIGHT[arm.name]
     tree = ArmTree()
@@ -219,6 +226,7 @@ def build_dual_ppr_prr(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> Arm
     carrying E = (0, 0, s4); the tilt φ5 about x at E, link ED (l5) along z5, the turn φ6
     about z5 at D and link 4 (l4) along x4 to C4 (``link4``). O stands 0.5 m above the
     floor, so the lift's lowest E clears it."""
+    arm = cast(DualPprPrrArm, arm)
     lim = arm.joint_limits
     height = BASE_HEIGHT[arm.name]
     tree = ArmTree()

@@ -23,11 +23,16 @@ built to clear each other through the joints, which these primitives cannot repr
 from __future__ import annotations
 
 import itertools
+from collections.abc import Iterable
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ikbranch_gym.envs.kinematics import Arm
+from ikbranch_gym.envs.kinematics.opw import OpwArm
 from ikbranch_gym.envs.kinematics.rotations import axis_quaternion
+from ikbranch_gym.envs.kinematics.ur import UrArm
 
 from .builders import (
     DARK,
@@ -46,8 +51,12 @@ from .builders import (
 OPW_ARMS = ("opw", "kuka_kr6_r700", "abb_irb2400", "abb_irb2600", "abb_irb4600")
 UR_ARMS = ("ur", "ur5e", "ur10e")
 
+if TYPE_CHECKING:
+    import mujoco
 
-def _joint_body(parent, arm: Arm, index: int, axis: str, sign: float, pos, quat):
+
+def _joint_body(parent: mujoco.MjsBody, arm: Arm, index: int, axis: str, sign: float,
+                pos: ArrayLike, quat: ArrayLike) -> mujoco.MjsBody:
     """Body ``link_<joint>`` at ``pos``/``quat`` in ``parent`` with the arm's joint ``index``
     as a hinge about ``sign`` times the local ``axis``, ranged by the arm's limits."""
     import mujoco
@@ -72,14 +81,14 @@ def _joint_body(parent, arm: Arm, index: int, axis: str, sign: float, pos, quat)
     return body
 
 
-def _site(body, name: str, pos=(0.0, 0.0, 0.0)) -> None:
+def _site(body: mujoco.MjsBody, name: str, pos: ArrayLike = (0.0, 0.0, 0.0)) -> None:
     site = body.add_site()
     site.name = name
     site.pos = np.asarray(pos, dtype=float)
     site.size = np.array([0.03, 0.0, 0.0])
 
 
-def _tool(spec, tree: ArmTree, flange, start: float) -> None:
+def _tool(spec: mujoco.MjSpec, tree: ArmTree, flange: mujoco.MjsBody, start: float) -> None:
     holder = flange.add_body()  # welded: moves with the flange, named for reports
     holder.name = "tool"
     add_part(holder, "tool", "cylinder", [TOOL_RADIUS], TOOL_RGBA,
@@ -87,14 +96,15 @@ def _tool(spec, tree: ArmTree, flange, start: float) -> None:
     tree.tool_body = holder.name
 
 
-def _excludes(spec, pairs) -> None:
+def _excludes(spec: mujoco.MjSpec, pairs: Iterable[tuple[str, str]]) -> None:
     for a, b in pairs:
         exclude(spec, a, b)
 
 
-def build_opw(spec, arm: Arm, tool: bool = False) -> ArmTree:
+def build_opw(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> ArmTree:
     """An OPW arm (module docstring): base plinth, turning column with the shoulder
     housing, upper arm (c2), elbow offset and forearm (a2, c3), roll/bend/flange wrist."""
+    arm = cast(OpwArm, arm)
     scale = (arm.c2 + arm.c3) / 2
     signs, offsets = arm.sign_corrections, arm.offsets
     tree = ArmTree()
@@ -146,9 +156,10 @@ def build_opw(spec, arm: Arm, tool: bool = False) -> ArmTree:
 _UR_ALPHA = (np.pi / 2, 0.0, 0.0, np.pi / 2, -np.pi / 2, 0.0)
 
 
-def build_ur(spec, arm: Arm, tool: bool = False) -> ArmTree:
+def build_ur(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> ArmTree:
     """A UR arm (module docstring): base, shoulder housing, upper arm (a2) offset by d4
     along the shoulder axis, elbow housing, forearm (a3), three wrist housings."""
+    arm = cast(UrArm, arm)
     d, a = arm.dh
     scale = (abs(arm.a2) + abs(arm.a3)) / 2
     tree = ArmTree()

@@ -16,10 +16,13 @@ own lengths (l'p, b, a).
 
 from __future__ import annotations
 
+from typing import cast
+
 import mujoco
 import numpy as np
 
 from ikbranch_gym.envs.kinematics import Arm
+from ikbranch_gym.envs.kinematics.rod import RodMechanism
 
 from .builders import (
     DARK,
@@ -42,6 +45,7 @@ def build_rod_mechanism(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> Ar
     """Turntable with two supports a apart, block link O1O4 (b), table link O4P (l'p) and
     the working table at P; ``tool=True`` stands the held tool on the table along its
     normal (+z of the ``ee`` frame)."""
+    arm = cast(RodMechanism, arm)
     b, lpp, a = arm.b, arm.lp_prime, arm.a
     scale = 0.5 * (b + lpp)  # the mechanism's size: link radii and plates follow it
     r_link = 0.08 * scale

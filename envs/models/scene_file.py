@@ -39,7 +39,7 @@ import os
 import shutil
 import tempfile
 import time
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
@@ -47,6 +47,7 @@ from typing import Any
 
 import mujoco
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ikbranch_gym.envs.kinematics import Arm
 from ikbranch_gym.envs.kinematics.rotations import invert_pose, quaternion_matrix, rpy_matrix
@@ -115,7 +116,8 @@ class SceneFileError(ValueError):
         self.problem = problem
         super().__init__(f"{self.path}: {element + ': ' if element else ''}{problem}")
 
-    def __reduce__(self):  # pickles whole (e.g. raised in a vector env's worker)
+    def __reduce__(self) -> tuple[type, tuple[str, str, str]]:
+        # Pickles whole (e.g. raised in a vector env's worker).
         return type(self), (self.path, self.problem, self.element)
 
 
@@ -191,13 +193,14 @@ class SceneFile:
     def base_from_cell(self) -> np.ndarray:
         return invert_pose(self.base_pose)
 
-    def cell_to_base(self, poses) -> np.ndarray:
+    def cell_to_base(self, poses: ArrayLike) -> np.ndarray:
         """Poses (…, 4, 4) given in the cell frame, expressed in the arm's base frame."""
         return self.base_from_cell @ np.asarray(poses, dtype=np.float64)
 
 
 # ------------------------------------------------------------------------------ base pose
-def base_pose(base_pos=None, base_quat=None, base_rpy=None) -> np.ndarray:
+def base_pose(base_pos: ArrayLike | None = None, base_quat: ArrayLike | None = None,
+              base_rpy: ArrayLike | None = None) -> np.ndarray:
     """The arm's base in the cell (4, 4) from a position (m) and a unit quaternion
     (w, x, y, z) or roll-pitch-yaw (rad, R = Rz(yaw)·Ry(pitch)·Rx(roll), URDF's rpy).
 
@@ -223,7 +226,7 @@ def base_pose(base_pos=None, base_quat=None, base_rpy=None) -> np.ndarray:
     return pose
 
 
-def _vector(value, n: int, name: str) -> np.ndarray:
+def _vector(value: ArrayLike, n: int, name: str) -> np.ndarray:
     try:
         array = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
@@ -239,9 +242,9 @@ def _vector(value, n: int, name: str) -> np.ndarray:
 def load_scene_file(
     path: str | os.PathLike,
     *,
-    base_pos=None,
-    base_quat=None,
-    base_rpy=None,
+    base_pos: ArrayLike | None = None,
+    base_quat: ArrayLike | None = None,
+    base_rpy: ArrayLike | None = None,
     decompose: str = "auto",
     coacd_options: dict[str, Any] | None = None,
 ) -> SceneFile:
@@ -292,7 +295,9 @@ def load_scene_file(
         body = model.body(model.geom_bodyid[g]).name or f"body{model.geom_bodyid[g]}"
         matid = model.geom_matid[g]
         rgba = (model.mat_rgba[matid] if matid >= 0 else model.geom_rgba[g]).astype(np.float64)
-        mesh, parts, mesh_name = None, (), ""
+        mesh: MeshPart | None = None
+        parts: tuple[MeshPart, ...] = ()
+        mesh_name = ""
         if kind == "mesh":
             mesh_id = int(model.geom_dataid[g])
             mesh_name = model.mesh(mesh_id).name or f"mesh{mesh_id}"
@@ -334,7 +339,9 @@ def _check_static(path: Path, model: mujoco.MjModel) -> None:
                              f"flex {name!r}")
 
 
-def _base_pose(path, spec, model, data, base_pos, base_quat, base_rpy) -> np.ndarray:
+def _base_pose(path: Path, spec: mujoco.MjSpec, model: mujoco.MjModel, data: mujoco.MjData,
+               base_pos: ArrayLike | None, base_quat: ArrayLike | None,
+               base_rpy: ArrayLike | None) -> np.ndarray:
     site = next((s for s in range(model.nsite) if model.site(s).name == BASE_SITE), None)
     given = [name for name, value in
              (("base_pos", base_pos), ("base_quat", base_quat), ("base_rpy", base_rpy))
@@ -366,7 +373,9 @@ def _base_pose(path, spec, model, data, base_pos, base_quat, base_rpy) -> np.nda
 
 
 # ---------------------------------------------------------------------------------- meshes
-def _treat_mesh(path, model, mesh_id, name, source, decompose, options):
+def _treat_mesh(path: Path, model: mujoco.MjModel, mesh_id: int, name: str,
+                source: tuple[Path, str] | None, decompose: str, options: dict[str, Any],
+                ) -> tuple[MeshPart, tuple[MeshPart, ...], MeshReport]:
     vertex0, nvert = model.mesh_vertadr[mesh_id], model.mesh_vertnum[mesh_id]
     face0, nface = model.mesh_faceadr[mesh_id], model.mesh_facenum[mesh_id]
     vertices32 = np.ascontiguousarray(model.mesh_vert[vertex0:vertex0 + nvert])
@@ -476,7 +485,7 @@ def _cache_key(vertices32: np.ndarray, faces: np.ndarray, options: dict) -> str:
 
 
 def _cached_decomposition(
-    path, root: Path, key: str, mesh: MeshPart, options: dict, source: Path | None,
+    path: Path, root: Path, key: str, mesh: MeshPart, options: dict, source: Path | None,
     source_sha: str | None, info: dict,
 ) -> tuple[tuple[MeshPart, ...], bool]:
     """The parts for ``key`` from ``root/key[:16]`` if valid, else from CoACD (written)."""
@@ -531,7 +540,9 @@ def _read_cache(directory: Path, key: str) -> tuple[MeshPart, ...] | None:
         return None
 
 
-def _write_cache(root, directory, key, raw, options, source, source_sha, info, elapsed):
+def _write_cache(root: Path, directory: Path, key: str, raw: list, options: dict[str, Any],
+                 source: Path | None, source_sha: str | None, info: dict[str, Any],
+                 elapsed: float) -> None:
     root.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{key[:16]}-", dir=root))
     try:
@@ -579,7 +590,7 @@ def _prune(root: Path, keep: Path, source_sha: str) -> None:
             shutil.rmtree(other, ignore_errors=True)
 
 
-def _format_obj(vertices, faces, comment: str) -> str:
+def _format_obj(vertices: Iterable[Sequence[float]], faces: ArrayLike, comment: str) -> str:
     lines = [f"# {comment}"]
     lines += [f"v {float(x)!r} {float(y)!r} {float(z)!r}" for x, y, z in vertices]
     lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in np.asarray(faces, dtype=np.int64)]
@@ -667,7 +678,8 @@ def _quat(rotation: np.ndarray) -> np.ndarray:
     return quat
 
 
-def _add_geom(body, name, obstacle: Obstacle, pos, quat, mesh: str, *, visual: bool) -> None:
+def _add_geom(body: mujoco.MjsBody, name: str, obstacle: Obstacle, pos: np.ndarray,
+              quat: np.ndarray, mesh: str, *, visual: bool) -> None:
     geom = body.add_geom()
     geom.name = name
     geom.type = next(k for k, v in _SUPPORTED.items() if v == obstacle.kind)
