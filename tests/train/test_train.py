@@ -84,7 +84,8 @@ def test_training_run_writes_a_complete_run_directory_and_resumes(tmp_path):
                  "checkpoints/latest.zip", "best/best_model.zip", "evaluations.npz"):
         assert (run_dir / name).exists(), name
     assert list((run_dir / "tb").iterdir()), "TensorBoard logs"
-    assert not list(run_dir.rglob("*.partial.zip")), "checkpoints are written atomically"
+    # Checkpoints are written atomically: no temporary file of the writer is left behind.
+    assert not list(run_dir.rglob(".*.tmp")), "checkpoints are written atomically"
     config = yaml.safe_load((run_dir / "config.yml").read_text())
     assert config["env_id"] == ENV and config["hyperparams"]["n_steps"] == 64
     assert "stable-baselines3" in yaml.safe_load((run_dir / "versions.yml").read_text())
