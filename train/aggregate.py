@@ -10,7 +10,8 @@ Per env id and policy, from every trial's ``evaluation.json`` and the id's basel
   (one branch) gets no score. Reported: the **IQM** over runs × tasks with its 95 %
   stratified-bootstrap CI.
 - **Gaps** to the oracle: the **IQM gap** (``gap``), the IQM over runs × tasks of the
-  per-task (R_oracle − R)/|R_oracle|, with its CI; the **mean gap** (``mean_gap``),
+  per-task (R_oracle − R)/|R_oracle| (tasks where the oracle returns 0 left out), with its
+  CI; the **mean gap** (``mean_gap``),
   (mean R_oracle − mean R)/|mean R_oracle| over the same runs × tasks, a point value.
 - **Success rate** with a stratified-bootstrap 95 % CI.
 - **Probability of improvement** of each learned policy over ``paper_rule`` and over
@@ -173,7 +174,9 @@ def summarise(root: Path, env_id: str, entry: dict[str, Any]) -> dict[str, Any]:
         seeds[algo] = [r["seed"] for r in records]
         budgets[algo] = {"timesteps": sorted({int(r["timesteps"]) for r in records}),
                          "train_minutes": float(np.mean([r["train_minutes"] for r in records]))}
-    scale = np.where(np.abs(oracle) > 0, np.abs(oracle), 1.0)
+    # The IQM gap's tasks: those where the oracle's return gives it a scale (as in the
+    # evaluation table, agents.evaluation).
+    scaled = np.abs(oracle) > 0
     result: dict[str, Any] = {"env": env_id, "episodes": len(oracle),
                               "task_seed": entry["baselines"]["task_seed"],
                               "env_kwargs": entry["baselines"]["env_kwargs"],
@@ -183,7 +186,9 @@ def summarise(root: Path, env_id: str, entry: dict[str, Any]) -> dict[str, Any]:
         row: dict[str, Any] = {
             "runs": len(returns), "seeds": seeds.get(name),
             "success": _estimate({"x": run["successes"]}, metrics.aggregate_mean)["x"],
-            "gap": _estimate({"x": (oracle - returns) / scale}, _iqm)["x"],
+            "gap": (_estimate({"x": (oracle[scaled] - returns[:, scaled])
+                                     / np.abs(oracle[scaled])}, _iqm)["x"]
+                    if scaled.any() else None),
             "mean_gap": mean_gap(returns, oracle),
             "mean_return": float(returns.mean()),
             "decision_ms": float(run["decision_ms"].mean())}
