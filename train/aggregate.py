@@ -42,7 +42,7 @@ from typing import Any
 import numpy as np
 
 from ikbranch_gym.agents import DPOracle, PaperRule, RandomBranch, RecedingDP
-from ikbranch_gym.train.sweep import ROOT, env_name
+from ikbranch_gym.train.sweep import env_name
 
 #: Bootstrap resamples for every interval.
 REPS = 2000
@@ -227,7 +227,7 @@ def aggregate(root: Path) -> dict[str, dict[str, Any]]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m train.aggregate", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--root", type=Path, default=ROOT / "runs" / "sweep")
+    parser.add_argument("--root", type=Path, default=Path("runs") / "sweep")
     parser.add_argument("--out", type=Path, help="write the aggregate as JSON here")
     parser.add_argument("--publish", action="store_true",
                         help="archive the root's finished trials in docs/results/sweep/trials, "

@@ -202,7 +202,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--algo", action="append", choices=tuple(ALGORITHMS), dest="algos",
                    help="default: every algorithm")
     p.add_argument("--seeds", default="0-4", type=_seeds, help="e.g. 0-4 or 0,2,5 (0-4)")
-    p.add_argument("--root", type=Path, default=ROOT / "runs" / "sweep")
+    # Relative to the working directory: a checkout's runs/, or an installed package user's.
+    p.add_argument("--root", type=Path, default=Path("runs") / "sweep")
     p.add_argument("--archive", type=Path, default=ARCHIVE,
                    help="finished trials recorded here are skipped (default: the repository's)")
     p.add_argument("--address", help="an existing Ray cluster (default: embedded Ray)")

@@ -4,6 +4,7 @@ resumes (skips) them; the aggregation on synthetic scores with known IQM and int
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -380,3 +381,11 @@ def test_the_trial_archive_is_committed_not_ignored():
     result = subprocess.run(["git", "check-ignore", "--no-index", "-q", str(probe)],
                             cwd=sweep.ROOT, check=False)
     assert result.returncode == 1, f"{probe} is ignored by .gitignore"
+
+
+def test_a_sweeps_runs_land_under_the_working_directory_by_default():
+    # Not inside the package: an installed package's directory is no place for runs.
+    from ikbranch_gym.train import sweep
+
+    args = sweep.parser().parse_args(["--env", "IKBranch/ToolTransfer-v1"])
+    assert args.root == Path("runs") / "sweep" and not args.root.is_absolute()
