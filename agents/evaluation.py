@@ -328,6 +328,26 @@ def iqm(values: np.ndarray) -> float:
     return float(ordered[cut:len(ordered) - cut].mean())
 
 
+def mean_gap(returns: ArrayLike, oracle_returns: ArrayLike) -> float | None:
+    """(mean R_oracle − mean R)/|mean R_oracle|: ``returns`` of one run (tasks,) or several
+    (runs, tasks) against the oracle's (tasks,) on the same tasks. With no scale (the
+    oracle's mean return 0): 0.0 where the means are equal, else None."""
+    best = float(np.asarray(oracle_returns, dtype=float).mean())
+    mean = float(np.asarray(returns, dtype=float).mean())
+    if best != 0.0:
+        return (best - mean) / abs(best)
+    return 0.0 if mean == best else None
+
+
+def task_gaps(returns: ArrayLike, oracle_returns: ArrayLike) -> np.ndarray:
+    """Per task (R_oracle,i − R_i)/|R_oracle,i| of ``returns`` (tasks,) or (runs, tasks)
+    against the oracle's (tasks,), the tasks where the oracle returns 0 left out (they
+    have no scale): the values the IQM gap summarises."""
+    mine, best = np.asarray(returns, dtype=float), np.asarray(oracle_returns, dtype=float)
+    scaled = best != 0.0
+    return (best[scaled] - mine[..., scaled]) / np.abs(best[scaled])
+
+
 def gaps(returns: ArrayLike, oracle_returns: ArrayLike) -> dict[str, Any]:
     """``mean_gap``, ``iqm_gap`` and ``iqm_gap_skipped`` of ``returns`` against the
     oracle's returns on the same tasks (module docstring). A gap is None where it has no
@@ -337,15 +357,10 @@ def gaps(returns: ArrayLike, oracle_returns: ArrayLike) -> dict[str, Any]:
     if mine.shape != best.shape:
         raise ValueError(f"{len(mine)} returns against {len(best)} of the oracle: "
                          "the gaps compare the same tasks")
-    best_mean, mean = float(best.mean()), float(mine.mean())
-    if best_mean != 0.0:
-        mean_gap: float | None = (best_mean - mean) / abs(best_mean)
-    else:
-        mean_gap = 0.0 if mean == best_mean else None  # no scale to measure against
-    scaled = best != 0.0
-    per_task = (best[scaled] - mine[scaled]) / np.abs(best[scaled])
-    return {"mean_gap": mean_gap, "iqm_gap": iqm(per_task) if scaled.any() else None,
-            "iqm_gap_skipped": int((~scaled).sum())}
+    per_task = task_gaps(mine, best)
+    return {"mean_gap": mean_gap(mine, best),
+            "iqm_gap": iqm(per_task) if per_task.size else None,
+            "iqm_gap_skipped": int((best == 0.0).sum())}
 
 
 def summarise(episodes: list[Episode], oracle_returns: ArrayLike | None = None) -> dict[str, Any]:

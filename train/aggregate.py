@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 
 from ikbranch_gym.agents import DPOracle, PaperRule, RandomBranch, RecedingDP
+from ikbranch_gym.agents.evaluation import mean_gap, task_gaps
 from ikbranch_gym.train.sweep import env_name
 
 #: Bootstrap resamples for every interval.
@@ -136,16 +137,6 @@ def _iqm(x: np.ndarray) -> float:
     return float(metrics.aggregate_iqm(x))
 
 
-def mean_gap(returns: np.ndarray, oracle: np.ndarray) -> float | None:
-    """(mean R_oracle − mean R)/|mean R_oracle|, ``returns`` (runs, tasks) against the
-    oracle's (tasks,) on the same tasks; with no scale (the oracle's mean return 0), 0.0
-    where the means are equal and None otherwise."""
-    best, mean = float(np.mean(oracle)), float(np.mean(returns))
-    if best != 0.0:
-        return (best - mean) / abs(best)
-    return 0.0 if mean == best else None
-
-
 def summarise(root: Path, env_id: str, entry: dict[str, Any]) -> dict[str, Any]:
     """The aggregate record of one env id."""
     from rliable import metrics
@@ -174,9 +165,6 @@ def summarise(root: Path, env_id: str, entry: dict[str, Any]) -> dict[str, Any]:
         seeds[algo] = [r["seed"] for r in records]
         budgets[algo] = {"timesteps": sorted({int(r["timesteps"]) for r in records}),
                          "train_minutes": float(np.mean([r["train_minutes"] for r in records]))}
-    # The IQM gap's tasks: those where the oracle's return gives it a scale (as in the
-    # evaluation table, agents.evaluation).
-    scaled = np.abs(oracle) > 0
     result: dict[str, Any] = {"env": env_id, "episodes": len(oracle),
                               "task_seed": entry["baselines"]["task_seed"],
                               "env_kwargs": entry["baselines"]["env_kwargs"],
@@ -186,9 +174,10 @@ def summarise(root: Path, env_id: str, entry: dict[str, Any]) -> dict[str, Any]:
         row: dict[str, Any] = {
             "runs": len(returns), "seeds": seeds.get(name),
             "success": _estimate({"x": run["successes"]}, metrics.aggregate_mean)["x"],
-            "gap": (_estimate({"x": (oracle[scaled] - returns[:, scaled])
-                                     / np.abs(oracle[scaled])}, _iqm)["x"]
-                    if scaled.any() else None),
+            # The IQM gap over the tasks the oracle's return gives a scale (as in the
+            # evaluation table).
+            "gap": (_estimate({"x": task_gaps(returns, oracle)}, _iqm)["x"]
+                    if (oracle != 0.0).any() else None),
             "mean_gap": mean_gap(returns, oracle),
             "mean_return": float(returns.mean()),
             "decision_ms": float(run["decision_ms"].mean())}
