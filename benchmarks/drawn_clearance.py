@@ -3,9 +3,10 @@
     .venv/bin/python benchmarks/drawn_clearance.py [--ids ID ...] [--episodes 20] [--seed 0]
                                                    [--policy dp_oracle|random]
 
-The envs collide simplified shapes (docs/models.md): a drawn cylinder is collided as the
-capsule inside it, a drawn box of an industrial arm as a convex mesh. This measures what
-the simplification leaves out. Per id: seeded episodes (held-out scenes where the id draws
+The current ids collide the drawn shapes themselves (a drawn box as its 8-vertex convex
+mesh); the generation before collided a drawn cylinder as the capsule inside it and
+excluded overlapping wrist parts from each other. This measures what a generation's
+collision shapes leave out. Per id: seeded episodes (held-out scenes where the id draws
 clutter) played by the DP oracle (full episodes of free moves, as a trained policy plays
 them) or by masked random actions; every move the env paid no collision penalty for is
 sampled on the env's own path grid (consecutive samples at most δ = the collision
@@ -20,9 +21,11 @@ is measured again with coal's signed distances (placed by MuJoCo's forward kinem
 Columns: moves checked, samples, moves whose collision shapes come closer than δ − 0.1 mm,
 moves whose drawn shapes overlap (signed distance < 0), the deepest overlap (mm) and the
 pair of bodies; then the same for the body pairs the model excludes explicitly other than
-parent and child (a wrist's housings): the checker never tests them, so an overlap there
-is hidden by the exclusion (a parent and its child meet at their joint by design). Between
-grid samples the shapes move at most δ: a measurement on the grid, not a certified bound.
+a joint's own two sides (the earlier wrists' housings): the checker never tests them, so
+an overlap there is hidden by the exclusion (a parent and its child meet at their joint by
+design). Those are measurements on the grid; the last column is continuous: the free moves
+whose drawn shapes (tested and excluded pairs) ``Measure.certify`` proves apart all along
+the move, between the samples too.
 
 Needs coal (``pip install coal``; not a dependency of the package).
 """
@@ -36,8 +39,8 @@ from collections import defaultdict
 import gymnasium as gym
 import numpy as np
 
-import ikbranch_gym
 from ikbranch_gym.agents import make_baseline
+from ikbranch_gym.envs import CURRENT_IDS
 from ikbranch_gym.envs.models.independent import Measure
 from ikbranch_gym.envs.seeds import held_out
 
@@ -49,7 +52,7 @@ def measure(env_id: str, episodes: int, seed: int, policy: str) -> dict:
     probe, checker = Measure(env), base.checker
     delta = checker.resolution
     rng = np.random.default_rng(seed)
-    moves = samples = close_collision = overlapping = excluded_overlapping = 0
+    moves = samples = close_collision = overlapping = excluded_overlapping = certified = 0
     deepest, worst, excluded_deepest = 0.0, "", 0.0
     per_pair: dict[str, float] = defaultdict(float)
     start = time.perf_counter()
@@ -89,10 +92,12 @@ def measure(env_id: str, episodes: int, seed: int, policy: str) -> dict:
                 if hidden < 0.0:
                     excluded_overlapping += 1
                     excluded_deepest = max(excluded_deepest, -hidden)
+            pairs = np.concatenate([probe.drawn, probe.excluded])
+            certified += probe.certify(before, base.q, pairs).certified
     return {"moves": moves, "samples": samples, "collision closer than δ": close_collision,
             "drawn overlapping": overlapping, "deepest mm": 1e3 * deepest, "pair": worst,
             "excluded overlapping": excluded_overlapping,
-            "excluded deepest mm": 1e3 * excluded_deepest,
+            "excluded deepest mm": 1e3 * excluded_deepest, "certified": certified,
             "seconds": time.perf_counter() - start}
 
 
@@ -104,19 +109,19 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--policy", choices=("dp_oracle", "random"), default="dp_oracle")
     args = parser.parse_args()
-    ids = args.ids or [i for i in ikbranch_gym.ENV_IDS
-                       if ikbranch_gym.ENV_SPECS[i].get("observation") == "compact"]
+    ids = args.ids or list(CURRENT_IDS)
     print(f"{args.episodes} episodes per id played by {args.policy}, seed {args.seed}\n")
     print("| id | free moves | samples | collision shapes closer than δ | drawn shapes "
           "overlapping | deepest (mm) | pair | excluded pairs' drawn shapes overlapping | "
-          "deepest (mm) | s |")
-    print("|---|---:|---:|---:|---:|---:|---|---:|---:|---:|")
+          "deepest (mm) | drawn shapes certified apart all along | s |")
+    print("|---|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|")
     for env_id in ids:
         r = measure(env_id, args.episodes, args.seed, args.policy)
         print(f"| {env_id} | {r['moves']:,} | {r['samples']:,} | "
               f"{r['collision closer than δ']} | {r['drawn overlapping']} | "
               f"{r['deepest mm']:.1f} | {r['pair'] or '–'} | {r['excluded overlapping']} | "
-              f"{r['excluded deepest mm']:.1f} | {r['seconds']:.0f} |", flush=True)
+              f"{r['excluded deepest mm']:.1f} | {r['certified']} | {r['seconds']:.0f} |",
+              flush=True)
 
 
 if __name__ == "__main__":

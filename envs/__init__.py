@@ -6,6 +6,7 @@
 
 from __future__ import annotations
 
+import copy
 import os
 
 # The one place MUJOCO_GL is chosen: mujoco picks its GL backend when first imported, and
@@ -38,7 +39,7 @@ ENV_SPECS: dict[str, dict] = {
 for _kwargs in ENV_SPECS.values():
     _kwargs.setdefault("observation", "ladder")
 
-#: The current generation (the version history in ``IKBranchEnv``'s docstring): compact
+#: The generation before (the version history in ``IKBranchEnv``'s docstring): compact
 #: observations, and random clutter drawn anew at every episode.
 _CLUTTER = {"scene": "random_clutter", "scene_seed": None, "task": "random",
             "observation": "compact"}
@@ -84,7 +85,34 @@ ENV_SPECS.update({
         "arm": "abb_irb2600", "scene": "empty", "task": "screwing", **_COMPACT,
     },
 })
+# The ids above collide a cylinder as the capsule inside it and exclude the overlapping
+# parts of wrists and guides from each other, as their published models were trained.
+for _kwargs in ENV_SPECS.values():
+    _kwargs.setdefault("collision_shapes", "inscribed")
+
+#: The current generation (the version history in ``IKBranchEnv``'s docstring): each id of
+#: the generation before, now collided as drawn (``collision_shapes="drawn"``).
+SUCCESSORS: dict[str, str] = {
+    "IKBranch/Cartesian-v2": "IKBranch/Cartesian-v3",
+    "IKBranch/Cylindrical-v2": "IKBranch/Cylindrical-v3",
+    "IKBranch/Spherical-v2": "IKBranch/Spherical-v3",
+    "IKBranch/Anthropomorphic-v2": "IKBranch/Anthropomorphic-v3",
+    "IKBranch/Cylindrical4-v2": "IKBranch/Cylindrical4-v3",
+    "IKBranch/ToolTransfer-v1": "IKBranch/ToolTransfer-v2",
+    "IKBranch/DualRRPRPP-v1": "IKBranch/DualRRPRPP-v2",
+    "IKBranch/DualRRRPPP-v1": "IKBranch/DualRRRPPP-v2",
+    "IKBranch/DualPPRPRR-v1": "IKBranch/DualPPRPRR-v2",
+    "IKBranch/RodMechanism-v2": "IKBranch/RodMechanism-v3",
+    "IKBranch/KukaKR6-v0": "IKBranch/KukaKR6-v1",
+    "IKBranch/UR5e-v0": "IKBranch/UR5e-v1",
+    "IKBranch/IRB4600ToolTransfer-v0": "IKBranch/IRB4600ToolTransfer-v1",
+    "IKBranch/IRB2600Screwing-v0": "IKBranch/IRB2600Screwing-v1",
+}
+ENV_SPECS.update({new: {**copy.deepcopy(ENV_SPECS[old]), "collision_shapes": "drawn"}
+                  for old, new in SUCCESSORS.items()})
 ENV_IDS: tuple[str, ...] = tuple(ENV_SPECS)
+#: The ids of the current generation, in ``ENV_IDS`` order.
+CURRENT_IDS: tuple[str, ...] = tuple(SUCCESSORS.values())
 
 for _env_id, _kwargs in ENV_SPECS.items():
     if _env_id not in gym.registry:
@@ -110,8 +138,8 @@ def warm_up() -> None:
     collision.warm_up()
     # A per-episode clutter (the random chain), a fixed cell, an arm with hundreds of
     # branches (factored travel summaries), and a vector env (a stack of scenes).
-    for env_id in ("IKBranch/Anthropomorphic-v2", "IKBranch/ToolTransfer-v1",
-                   "IKBranch/UR5e-v0"):
+    for env_id in ("IKBranch/Anthropomorphic-v3", "IKBranch/ToolTransfer-v2",
+                   "IKBranch/UR5e-v1"):
         env = gym.make(env_id, n_waypoints=2)
         env.reset(seed=0)
         unwrapped = env.unwrapped
@@ -119,11 +147,11 @@ def warm_up() -> None:
         assert isinstance(unwrapped, IKBranchEnv)
         env.step(int(unwrapped.action_masks().argmax()))
         env.close()
-    vec = gym.make_vec("IKBranch/Cartesian-v2", num_envs=2,
+    vec = gym.make_vec("IKBranch/Cartesian-v3", num_envs=2,
                        vectorization_mode="vector_entry_point")
     _, info = vec.reset(seed=0)
     vec.step(info["action_mask"].argmax(axis=1))
     vec.close()
 
 
-__all__ = ["ENV_IDS", "ENV_SPECS", "warm_up"]
+__all__ = ["CURRENT_IDS", "ENV_IDS", "ENV_SPECS", "SUCCESSORS", "warm_up"]

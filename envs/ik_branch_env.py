@@ -176,6 +176,7 @@ class IKBranchEnv(gym.Env):
     joint_weights         None                    per-joint travel weights (None: all 1)
     joint_speeds          None                    per-joint speed limits (None: 1.5 rad/s, 0.5 m/s)
     collision_resolution  0.01                    path-check clearance and step (m)
+    collision_shapes      "drawn"                 "drawn", or "inscribed" (the earlier ids)
     scene_seed            0                       clutter seed (None: new every reset)
     scene_seeds           None                    [lo, hi) of those (None: the training range)
     arm_params            None                    dict of arm parameters (``make_arm``)
@@ -251,6 +252,7 @@ class IKBranchEnv(gym.Env):
         joint_weights: list[float] | None = None,
         joint_speeds: list[float] | None = None,
         collision_resolution: float = 0.01,
+        collision_shapes: str = "drawn",
         scene_seed: int | None = 0,
         scene_seeds: list[int] | None = None,
         arm_params: dict[str, Any] | None = None,
@@ -282,7 +284,8 @@ class IKBranchEnv(gym.Env):
         draws_scenes = self._scene_seeds(scene, scene_seed, scene_seeds)
         if scene == "random_clutter":
             scene_kwargs = {"seed": scene_seed}
-        self.model = build_arm_model(self.arm, scene, tool=self.tool, **scene_kwargs)
+        self.model = build_arm_model(self.arm, scene, tool=self.tool,
+                                     collision_shapes=collision_shapes, **scene_kwargs)
         #: The per-episode clutter's obstacle slots (``scene_seed=None``), else None.
         self._clutter = ClutterSlots(self.model, CLUTTER_SLOTS) if draws_scenes else None
         #: The seed of the clutter standing now (None: the scene is fixed).

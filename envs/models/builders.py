@@ -9,9 +9,16 @@ through its body's origin, and slides sit at zero offset along their axis so tha
 
 Geometry follows the usual MuJoCo split: every link part is added twice, as a visual geom
 (group 2, no contacts, massless) and as a collision geom (group 3, ``contype = conaffinity =
-1``, carries the mass). Contacts between bodies that are built to touch (a joint's two
-sides, a slide running inside its guide, the parts of a spherical wrist) are excluded
-explicitly; everything else between arm bodies is a real self-collision.
+1``, carries the mass). With ``collision_shapes="drawn"`` (the current models) the
+collision geom is the drawn shape itself, cylinders included, and the only contacts
+excluded are a joint's own: a body and its parent (MuJoCo's rule; written out where the
+parent is welded to the world). Every other pair of arm bodies is a real self-collision,
+so the parts are shaped to clear each other within the joint limits (a wrist's housings
+are set back from its centre; a slide's guide surrounds only its own beam).
+``collision_shapes="inscribed"`` builds the earlier models the first registered ids keep:
+a cylinder collided as the capsule inside it (a disc as the box around it), the wrist's
+and the guides' overlapping parts excluded from each other (docs/models.md measures what
+that leaves out).
 
 A new arm type registers a tree builder with :func:`register_tree_builder`; two-arm systems
 are expected to add the sites ``link3`` and ``link4`` (their relative-pose frames) and need
@@ -53,21 +60,37 @@ TOOL_RGBA = (0.85, 0.80, 0.20, 1.0)
 COLLISION_RGBA = (0.2, 0.6, 0.9, 0.35)
 
 
+#: The two generations of collision shapes (module docstring): the drawn shapes, or the
+#: earlier inscribed ones.
+COLLISION_SHAPES = ("drawn", "inscribed")
+
+
+def check_collision_shapes(collision_shapes: str) -> str:
+    if collision_shapes not in COLLISION_SHAPES:
+        raise ValueError(f"collision_shapes must be one of {', '.join(COLLISION_SHAPES)}, "
+                         f"not {collision_shapes!r}")
+    return collision_shapes
+
+
 @dataclass
 class ArmTree:
-    """What a tree builder reports: bodies in chain order and the wrist/tool body names."""
+    """What a tree builder reports: bodies in chain order, the wrist/tool body names, and
+    the generation of collision shapes the model is built with."""
 
     bodies: list[str] = field(default_factory=list)
     ee_body: str = ""
     tool_body: str | None = None
+    collision_shapes: str = "drawn"
 
 
-TreeBuilder = Callable[[mujoco.MjSpec, Arm, bool], ArmTree]
+#: ``builder(spec, arm, tool, collision_shapes) -> ArmTree``.
+TreeBuilder = Callable[[mujoco.MjSpec, Arm, bool, str], ArmTree]
 TREE_BUILDERS: dict[str, TreeBuilder] = {}
 
 
 def register_tree_builder(name: str) -> Callable[[TreeBuilder], TreeBuilder]:
-    """Decorator: register ``builder(spec, arm, tool) -> ArmTree`` for the arm ``name``."""
+    """Decorator: register ``builder(spec, arm, tool, collision_shapes) -> ArmTree`` for the
+    arm ``name``."""
 
     def decorate(builder: TreeBuilder) -> TreeBuilder:
         if name in TREE_BUILDERS:
@@ -98,12 +121,8 @@ def add_part(
     pos: ArrayLike | None = None,
     quat: ArrayLike | None = None,
 ) -> None:
-    """Add one link part as a visual geom ``<name>_vis`` and a collision geom ``<name>``.
-
-    A cylinder's collision twin is a capsule inside the same length (or, for a disc, the
-    circumscribing box): MuJoCo's cylinder pairs go through the general convex solver,
-    which made collision checks about twice as slow.
-    """
+    """Add one link part as a visual geom ``<name>_vis`` and a collision geom ``<name>`` of
+    the same shape (:func:`compile_spec` inscribes the cylinders of the earlier models)."""
     size = np.asarray(size, dtype=float)
     for visual in (True, False):
         geom = body.add_geom()
@@ -112,8 +131,6 @@ def add_part(
         geom.size = np.resize(size, 3)
         if fromto is not None:
             geom.fromto = np.asarray(fromto, dtype=float)
-        if kind == "cylinder" and not visual:
-            _cylinder_to_primitive(geom, size, fromto)
         if pos is not None:
             geom.pos = np.asarray(pos, dtype=float)
         if quat is not None:
@@ -130,11 +147,21 @@ def add_part(
             geom.density = 500.0  # hollow steel links, roughly
 
 
+def inscribe_cylinders(spec: mujoco.MjSpec) -> None:
+    """The earlier models' collision cylinders: each turned into the capsule inside it (a
+    disc, lower than it is wide, into the box around it), which MuJoCo collided with its
+    fast primitive colliders."""
+    for geom in spec.geoms:
+        if geom.type == mujoco.mjtGeom.mjGEOM_CYLINDER and geom.contype:
+            fromto = None if np.isnan(geom.fromto[0]) else np.array(geom.fromto)
+            _cylinder_to_primitive(geom, np.array(geom.size), fromto)
+
+
 def _cylinder_to_primitive(geom: mujoco.MjsGeom, size: np.ndarray,
-                           fromto: ArrayLike | None) -> None:
+                           fromto: np.ndarray | None) -> None:
     radius = size[0]
     if fromto is not None:
-        ends = np.asarray(fromto, dtype=float).reshape(2, 3)
+        ends = fromto.reshape(2, 3)
         length = np.linalg.norm(ends[1] - ends[0])
         half = length / 2
         centre, axis = ends.mean(axis=0), (ends[1] - ends[0]) / max(length, 1e-12)
@@ -153,8 +180,11 @@ def _cylinder_to_primitive(geom: mujoco.MjsGeom, size: np.ndarray,
 
 
 def compile_spec(spec: mujoco.MjSpec,
-                 primitive_boxes: Callable[[str], bool] | None = None) -> mujoco.MjModel:
-    """Compile ``spec`` with every collision box turned into an 8-vertex convex mesh.
+                 primitive_boxes: Callable[[str], bool] | None = None, *,
+                 collision_shapes: str = "drawn") -> mujoco.MjModel:
+    """Compile ``spec`` with every collision box turned into an 8-vertex convex mesh (and,
+    for ``collision_shapes="inscribed"``, every collision cylinder inscribed first:
+    :func:`inscribe_cylinders`).
 
     ``primitive_boxes(name)`` True keeps that box a box: a mesh cannot be resized at run
     time, and the per-episode clutter's obstacle slots must be. Those boxes only ever meet
@@ -168,6 +198,8 @@ def compile_spec(spec: mujoco.MjSpec,
     tests/envs/models/test_collision.py). Visual geoms stay boxes. A box's frame (possibly
     set by ``fromto``) is taken from a first compile, so the mesh lands exactly on it.
     """
+    if check_collision_shapes(collision_shapes) == "inscribed":
+        inscribe_cylinders(spec)
     first = spec.compile()
     boxes = [
         g for g in range(first.ngeom)
@@ -246,11 +278,14 @@ def add_spherical_wrist(
     """The papers' Y–X–Y wrist (joints ``first``..``first+2``), ``ee`` at the wrist centre.
 
     The roll housing reaches back along −y to the positioning link; the bend housing lies
-    along x; the flange and gripper point along +y (the tool axis y3).
+    along x; the flange and gripper point along +y (the tool axis y3). In the drawn models
+    the roll housing ends 0.18 m behind the centre, so the flange clears it by δ up to the
+    bend's ±135° limit and no wrist pair is excluded beyond a joint's own two sides.
     """
+    drawn = tree.collision_shapes == "drawn"
     roll = add_link(parent, arm, first, (0, 1, 0), pos)
     add_part(roll, "roll_housing", "capsule", [0.07], ORANGE,
-             fromto=[0, -WRIST_SETBACK, 0, 0, -0.12, 0])
+             fromto=[0, -WRIST_SETBACK, 0, 0, -0.18 if drawn else -0.12, 0])
     bend = add_link(roll, arm, first + 1, (1, 0, 0))
     add_part(bend, "bend_housing", "capsule", [0.065], DARK, fromto=[-0.07, 0, 0, 0.07, 0, 0])
     flange = add_link(bend, arm, first + 2, (0, 1, 0))
@@ -267,14 +302,14 @@ def add_spherical_wrist(
         add_part(holder, "tool", "cylinder", [TOOL_RADIUS], TOOL_RGBA,
                  fromto=[0, 0, 0, 0, TOOL_LENGTH, 0])
         tree.tool_body = holder.name
-    # The three wrist bodies share the wrist centre: the wrist's own design keeps them clear
-    # of each other within the joint limits, which these primitives cannot represent.
-    for a, b in [(parent.name, roll.name), (roll.name, bend.name), (bend.name, flange.name),
-                 (roll.name, flange.name)]:
+    for a, b in [(parent.name, roll.name), (roll.name, bend.name), (bend.name, flange.name)]:
         exclude(spec, a, b)
-    if tool:
-        exclude(spec, roll.name, "tool")
-        exclude(spec, bend.name, "tool")
+    if not drawn:
+        # The earlier models' wrist bodies overlapped near the wrist centre: excluded.
+        exclude(spec, roll.name, flange.name)
+        if tool:
+            exclude(spec, roll.name, "tool")
+            exclude(spec, bend.name, "tool")
 
 
 def _chain_excludes(spec: mujoco.MjSpec, names: list[str]) -> None:
@@ -284,7 +319,8 @@ def _chain_excludes(spec: mujoco.MjSpec, names: list[str]) -> None:
 
 # ------------------------------------------------------------------------------ the arms
 @register_tree_builder("cartesian")
-def build_cartesian(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> ArmTree:
+def build_cartesian(spec: mujoco.MjSpec, arm: Arm, tool: bool = False,
+                    collision_shapes: str = "drawn") -> ArmTree:
     """Gantry: s1 along X0 (bridge), s2 along Y0 (carriage), s3 along Z0 (ram), then the
     Y–X–Y wrist at the ram's foot, O = (s1, s2, s3). The ram is 0.3 m behind the wrist
     centre (−y) so that the wrist's roll axis is horizontal like the other arms'."""
@@ -293,7 +329,7 @@ def build_cartesian(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> ArmTre
     y_half = max(abs(lim[1, 0]), abs(lim[1, 1])) + 0.5
     height = lim[2, 1] + 0.6  # rails above the highest wrist position
     ram_offset = 0.3
-    tree = ArmTree()
+    tree = ArmTree(collision_shapes=collision_shapes)
     base = add_static_body(spec, "base")
     for sx in (-1, 1):
         for sy in (-1, 1):
@@ -324,7 +360,14 @@ def build_cartesian(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> ArmTre
 def _column_lift_turn_radial(spec: mujoco.MjSpec, arm: Arm, tree: ArmTree,
                              radius: float) -> mujoco.MjsBody:
     """The positioning part shared by the cylindrical arms: s1 up the fixed column, φ1
-    about Z0, s2 radially along the arm's +y; returns the radial slide's body."""
+    about Z0, s2 radially along the arm's +y; returns the radial slide's body.
+
+    In the drawn models the radial slide is a fork: two rails beside the column, joined
+    by a crosshead in front of it, running in two guides on the turning carriage, so no
+    part passes through the column (the earlier models ran one beam through it).
+    """
+    if tree.collision_shapes == "drawn":
+        return _column_lift_turn_fork(spec, arm, tree, radius)
     lim = arm.joint_limits
     base = add_static_body(spec, "base")
     add_part(base, "plate", "cylinder", [0.35, 0.03], DARK, pos=[0, 0, 0.03])
@@ -347,21 +390,58 @@ def _column_lift_turn_radial(spec: mujoco.MjSpec, arm: Arm, tree: ArmTree,
     return radial
 
 
+#: The drawn cylindrical arms' fork: rails this far either side of the arm axis (m).
+FORK_HALF_WIDTH = 0.20
+
+
+def _column_lift_turn_fork(spec: mujoco.MjSpec, arm: Arm, tree: ArmTree,
+                           radius: float) -> mujoco.MjsBody:
+    """The drawn positioning part of the cylindrical arms (see the caller): the column
+    (r 0.10), the lift's sleeve on it (r 0.13), the carriage's guides and the rails
+    (``radius / 2``) at x = ±0.20, the crosshead joining the rails 0.25 m behind the wrist
+    centre. The crosshead clears the sleeve once s2 > 0.43 m, where the wrist itself
+    clears the column."""
+    lim = arm.joint_limits
+    rail = radius / 2
+    base = add_static_body(spec, "base")
+    add_part(base, "plate", "cylinder", [0.35, 0.03], DARK, pos=[0, 0, 0.03])
+    add_part(base, "column", "cylinder", [0.10], DARK, fromto=[0, 0, 0, 0, 0, lim[0, 1] + 0.25])
+    lift = add_link(base, arm, 0, (0, 0, 1))
+    add_part(lift, "sleeve", "cylinder", [0.13], ORANGE, fromto=[0, 0, -0.15, 0, 0, 0.15])
+    turn = add_link(lift, arm, 1, (0, 0, 1))
+    for side, x in (("m", -FORK_HALF_WIDTH), ("p", FORK_HALF_WIDTH)):
+        add_part(turn, f"guide_{side}", "box", [rail + 0.03, 0.24, rail + 0.03], ORANGE,
+                 pos=[x, 0, 0])
+    radial = add_link(turn, arm, 2, (0, 1, 0))
+    # Long enough to stay in the guides (|y| < 0.24) at full stroke.
+    tail, front = -lim[2, 1] - 0.2, -WRIST_SETBACK
+    for side, x in (("m", -FORK_HALF_WIDTH), ("p", FORK_HALF_WIDTH)):
+        add_part(radial, f"rail_{side}", "capsule", [rail], STEEL,
+                 fromto=[x, tail, 0, x, front, 0])
+    add_part(radial, "crosshead", "capsule", [rail], STEEL,
+             fromto=[-FORK_HALF_WIDTH, front, 0, FORK_HALF_WIDTH, front, 0])
+    tree.bodies += ["base", lift.name, turn.name, radial.name]
+    _chain_excludes(spec, tree.bodies)
+    return radial
+
+
 @register_tree_builder("cylindrical")
-def build_cylindrical(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> ArmTree:
+def build_cylindrical(spec: mujoco.MjSpec, arm: Arm, tool: bool = False,
+                      collision_shapes: str = "drawn") -> ArmTree:
     """s1 along Z0, φ1 about Z0, s2 radial along the arm's y, then the Y–X–Y wrist:
     O = (−s2 sin φ1, s2 cos φ1, s1)."""
-    tree = ArmTree()
+    tree = ArmTree(collision_shapes=collision_shapes)
     radial = _column_lift_turn_radial(spec, arm, tree, 0.07)
     add_spherical_wrist(spec, tree, radial, arm, 3, tool)
     return tree
 
 
 @register_tree_builder("cylindrical4")
-def build_cylindrical4(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> ArmTree:
+def build_cylindrical4(spec: mujoco.MjSpec, arm: Arm, tool: bool = False,
+                       collision_shapes: str = "drawn") -> ArmTree:
     """The cylindrical arm's positioning part and one gripper rotation φ2 about the arm
     axis y: R = Rz(φ1)·Ry(φ2)."""
-    tree = ArmTree()
+    tree = ArmTree(collision_shapes=collision_shapes)
     radial = _column_lift_turn_radial(spec, arm, tree, 0.06)
     grip = add_link(radial, arm, 3, (0, 1, 0))
     add_part(grip, "rotary", "cylinder", [0.06], DARK,
@@ -385,19 +465,31 @@ def build_cylindrical4(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> Arm
 
 
 @register_tree_builder("spherical")
-def build_spherical(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> ArmTree:
+def build_spherical(spec: mujoco.MjSpec, arm: Arm, tool: bool = False,
+                    collision_shapes: str = "drawn") -> ArmTree:
     """φ1 about Z0, shoulder at (0, 0, l1), elevation φ2 about x, radial slide s1 along the
     boom's y, then the Y–X–Y wrist: O = (0, 0, l1) + Rz(φ1)·Rx(φ2)·(0, s1, 0)."""
     arm = cast(SphericalArm, arm)
     lim = arm.joint_limits
-    tree = ArmTree()
+    tree = ArmTree(collision_shapes=collision_shapes)
     base = add_static_body(spec, "base")
     add_part(base, "pedestal", "cylinder", [0.18], DARK, fromto=[0, 0, 0, 0, 0, arm.l1 - 0.45])
     add_part(base, "plate", "cylinder", [0.35, 0.03], DARK, pos=[0, 0, 0.03])
     turret = add_link(base, arm, 0, (0, 0, 1))
-    add_part(turret, "turret", "cylinder", [0.22], ORANGE,
-             fromto=[0, 0, arm.l1 - 0.45, 0, 0, arm.l1 - 0.12])
-    add_part(turret, "yoke", "box", [0.26, 0.08, 0.14], ORANGE, pos=[0, 0, arm.l1])
+    drawn = collision_shapes == "drawn"
+    if drawn:
+        # A turntable and two cheeks rising either side of the boom: the ram's tail swings
+        # between them, down to the turntable.
+        add_part(turret, "turret", "cylinder", [0.22], ORANGE,
+                 fromto=[0, 0, arm.l1 - 0.45, 0, 0, arm.l1 - 0.40])
+        cheek = (0.45 + 0.14) / 2
+        for side, x in (("m", -0.2), ("p", 0.2)):
+            add_part(turret, f"yoke_{side}", "box", [0.06, 0.08, cheek], ORANGE,
+                     pos=[x, 0, arm.l1 + 0.14 - cheek])
+    else:
+        add_part(turret, "turret", "cylinder", [0.22], ORANGE,
+                 fromto=[0, 0, arm.l1 - 0.45, 0, 0, arm.l1 - 0.12])
+        add_part(turret, "yoke", "box", [0.26, 0.08, 0.14], ORANGE, pos=[0, 0, arm.l1])
     boom = add_link(turret, arm, 1, (1, 0, 0), (0, 0, arm.l1))
     add_part(boom, "trunnion", "capsule", [0.1], DARK, fromto=[-0.2, 0, 0, 0.2, 0, 0])
     add_part(boom, "boom", "capsule", [0.12], ORANGE, fromto=[0, -0.25, 0, 0, 0.25, 0])
@@ -407,17 +499,19 @@ def build_spherical(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> ArmTre
              fromto=[0, 0.25 - lim[2, 1], 0, 0, -WRIST_SETBACK, 0])
     tree.bodies += ["base", turret.name, boom.name, ram.name]
     _chain_excludes(spec, tree.bodies)
-    exclude(spec, turret.name, ram.name)  # the ram slides through the yoke
+    if not drawn:
+        exclude(spec, turret.name, ram.name)  # the ram slid through the yoke
     add_spherical_wrist(spec, tree, ram, arm, 3, tool)
     return tree
 
 
 @register_tree_builder("anthropomorphic")
-def build_anthropomorphic(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> ArmTree:
+def build_anthropomorphic(spec: mujoco.MjSpec, arm: Arm, tool: bool = False,
+                          collision_shapes: str = "drawn") -> ArmTree:
     """φ1 about Z0 (column), shoulder at (0, 0, l1), φ2 and φ3 about local x, upper arm
     (l2) and forearm (l3) along local y, then the Y–X–Y wrist at the forearm's end."""
     arm = cast(AnthropomorphicArm, arm)
-    tree = ArmTree()
+    tree = ArmTree(collision_shapes=collision_shapes)
     base = add_static_body(spec, "base")
     add_part(base, "plinth", "cylinder", [0.3], DARK, fromto=[0, 0, 0, 0, 0, 0.3])
     column = add_link(base, arm, 0, (0, 0, 1))

@@ -93,7 +93,8 @@ def _chains(spec: mujoco.MjSpec, tree: ArmTree, arm1: list[str], arm2: list[str]
 
 # ------------------------------------------------------------------------------ RRP–RPP
 @register_tree_builder("dual_rrp_rpp")
-def build_dual_rrp_rpp(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> ArmTree:
+def build_dual_rrp_rpp(spec: mujoco.MjSpec, arm: Arm, tool: bool = False,
+                       collision_shapes: str = "drawn") -> ArmTree:
     """Arm 1: a pedestal on +x holds the roll axis Ox; the shoulder AB (l1) turns about it
     at A = (a0, 0, 0); at B a turning guide (φ2 about z2) carries the telescope s3 along
     x2, whose tip is C3 (``link3``). Arm 2: a turntable about Oz with its column beside
@@ -103,7 +104,7 @@ def build_dual_rrp_rpp(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> Arm
     lim = arm.joint_limits
     height = BASE_HEIGHT[arm.name]
     joint = {name: index for index, name in enumerate(arm.joint_names)}
-    tree = ArmTree()
+    tree = ArmTree(collision_shapes=collision_shapes)
 
     # Arm 1: pedestal beyond A on +x, so the roll axis stays clear of arm 2's column.
     base = add_static_body(spec, "base")
@@ -155,7 +156,8 @@ def build_dual_rrp_rpp(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> Arm
 
 # ------------------------------------------------------------------------------ RRR–PPP
 @register_tree_builder("dual_rrr_ppp")
-def build_dual_rrr_ppp(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> ArmTree:
+def build_dual_rrr_ppp(spec: mujoco.MjSpec, arm: Arm, tool: bool = False,
+                       collision_shapes: str = "drawn") -> ArmTree:
     """Arm 1: a column rising h above O, turning φ1 about Oz; link AB (l1) along x1, roll
     φ2 about x1 at B, link BC (l2) along z2, turn φ3 about z3 at C, link CC3 (l3) along x3
     to ``link3``. Arm 2: a Cartesian robot beside arm 1 on +x: a tower riding floor rails
@@ -166,7 +168,7 @@ def build_dual_rrr_ppp(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> Arm
     arm = cast(DualRrrPppArm, arm)
     lim = arm.joint_limits
     height = BASE_HEIGHT[arm.name]
-    tree = ArmTree()
+    tree = ArmTree(collision_shapes=collision_shapes)
 
     base = add_static_body(spec, "base")
     add_part(base, "plinth", "cylinder", [0.22, 0.025], DARK, pos=[0, 0, 0.025])
@@ -219,7 +221,8 @@ def build_dual_rrr_ppp(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> Arm
 
 # ------------------------------------------------------------------------------ PPR–PRR
 @register_tree_builder("dual_ppr_prr")
-def build_dual_ppr_prr(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> ArmTree:
+def build_dual_ppr_prr(spec: mujoco.MjSpec, arm: Arm, tool: bool = False,
+                       collision_shapes: str = "drawn") -> ArmTree:
     """Arm 1: an overhead XY frame, bridge s1 along Ox, carriage s2 along Oy, a quill down
     to the turn φ3 about the vertical at height l1 above O; link 3 (l3) along x3 to C3
     (``link3``). Arm 2: a fixed column behind the tilt axis (−x), a carriage lifting s4
@@ -229,7 +232,7 @@ def build_dual_ppr_prr(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> Arm
     arm = cast(DualPprPrrArm, arm)
     lim = arm.joint_limits
     height = BASE_HEIGHT[arm.name]
-    tree = ArmTree()
+    tree = ArmTree(collision_shapes=collision_shapes)
 
     # Arm 1: the frame's rails run along x, above the turn by 0.5 m.
     pivot_z = height + arm.l1

@@ -14,9 +14,12 @@ Both are built joint by joint from the kinematics' own parameters, so the site `
 
 Link solids are sized from the lengths (capsules along each link, housings along each
 joint axis, radii proportional to the arm's scale), split into visual and collision twins
-like every arm here. The wrist bodies (j4–j6, and each with the link before the wrist)
-are excluded from each other, as the papers' wrists are: the real wrist's housings are
-built to clear each other through the joints, which these primitives cannot represent.
+like every arm here. In the drawn models (``collision_shapes="drawn"``) only a joint's
+own two sides are excluded: the OPW roll housing ends 0.85 of the wrist setback behind
+the wrist centre, where the flange clears it up to the bend's data-sheet limit, and the
+UR wrist keeps its two exclusions, which tests/envs/models/test_builders.py shows never
+hide an overlap of the drawn parts. The earlier models excluded the wrist bodies (j4–j6,
+and each with the link before the wrist) from each other.
 ``tool=True`` adds the held tool: a 0.35 m cylinder along the flange normal (body ``tool``).
 """
 
@@ -101,13 +104,14 @@ def _excludes(spec: mujoco.MjSpec, pairs: Iterable[tuple[str, str]]) -> None:
         exclude(spec, a, b)
 
 
-def build_opw(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> ArmTree:
+def build_opw(spec: mujoco.MjSpec, arm: Arm, tool: bool = False,
+              collision_shapes: str = "drawn") -> ArmTree:
     """An OPW arm (module docstring): base plinth, turning column with the shoulder
     housing, upper arm (c2), elbow offset and forearm (a2, c3), roll/bend/flange wrist."""
     arm = cast(OpwArm, arm)
     scale = (arm.c2 + arm.c3) / 2
     signs, offsets = arm.sign_corrections, arm.offsets
-    tree = ArmTree()
+    tree = ArmTree(collision_shapes=collision_shapes)
     base = add_static_body(spec, "base")
     plinth = max(0.5 * arm.c1, 0.05)
     add_part(base, "plinth", "cylinder", [0.35 * scale], DARK,
@@ -131,8 +135,9 @@ def build_opw(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> ArmTree:
              fromto=[arm.a2, 0, 0, arm.a2, 0, max(arm.c3 - setback, 0.0)])
     j4 = _joint_body(j3, arm, 3, "z", signs[3], (arm.a2, 0, arm.c3),
                      axis_quaternion("z", -offsets[3]))
+    drawn = collision_shapes == "drawn"
     add_part(j4, "roll_housing", "capsule", [0.11 * scale], ORANGE,
-             fromto=[0, 0, -setback, 0, 0, -0.45 * setback])
+             fromto=[0, 0, -setback, 0, 0, -(0.85 if drawn else 0.45) * setback])
     j5 = _joint_body(j4, arm, 4, "y", signs[4], (0, 0, 0), axis_quaternion("y", -offsets[4]))
     add_part(j5, "bend_housing", "capsule", [0.09 * scale], DARK,
              fromto=[0, -0.1 * scale, 0, 0, 0.1 * scale, 0])
@@ -144,11 +149,13 @@ def build_opw(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> ArmTree:
     tree.ee_body = j6.name
     chain = tree.bodies
     _excludes(spec, itertools.pairwise(chain))
-    # The wrist bodies share the wrist centre (see the module docstring).
-    _excludes(spec, [(j3.name, j5.name), (j3.name, j6.name), (j4.name, j6.name)])
+    if not drawn:
+        # The earlier models' wrist bodies overlapped near the wrist centre.
+        _excludes(spec, [(j3.name, j5.name), (j3.name, j6.name), (j4.name, j6.name)])
     if tool:
         _tool(spec, tree, j6, arm.c4)
-        _excludes(spec, [(j4.name, "tool"), (j5.name, "tool")])
+        if not drawn:
+            _excludes(spec, [(j4.name, "tool"), (j5.name, "tool")])
     return tree
 
 
@@ -156,13 +163,14 @@ def build_opw(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> ArmTree:
 _UR_ALPHA = (np.pi / 2, 0.0, 0.0, np.pi / 2, -np.pi / 2, 0.0)
 
 
-def build_ur(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> ArmTree:
+def build_ur(spec: mujoco.MjSpec, arm: Arm, tool: bool = False,
+             collision_shapes: str = "drawn") -> ArmTree:
     """A UR arm (module docstring): base, shoulder housing, upper arm (a2) offset by d4
     along the shoulder axis, elbow housing, forearm (a3), three wrist housings."""
     arm = cast(UrArm, arm)
     d, a = arm.dh
     scale = (abs(arm.a2) + abs(arm.a3)) / 2
-    tree = ArmTree()
+    tree = ArmTree(collision_shapes=collision_shapes)
     base = add_static_body(spec, "base")
     add_part(base, "base_plate", "cylinder", [0.2 * scale], DARK,
              fromto=[0, 0, 0, 0, 0, 0.35 * arm.d1])

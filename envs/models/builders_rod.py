@@ -41,7 +41,8 @@ from .builders import (
 
 
 @register_tree_builder("rod_mechanism")
-def build_rod_mechanism(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> ArmTree:
+def build_rod_mechanism(spec: mujoco.MjSpec, arm: Arm, tool: bool = False,
+                        collision_shapes: str = "drawn") -> ArmTree:
     """Turntable with two supports a apart, block link O1O4 (b), table link O4P (l'p) and
     the working table at P; ``tool=True`` stands the held tool on the table along its
     normal (+z of the ``ee`` frame)."""
@@ -52,7 +53,7 @@ def build_rod_mechanism(spec: mujoco.MjSpec, arm: Arm, tool: bool = False) -> Ar
     r_pin = 0.1 * scale
     pin_half = 0.2 * scale
     depth = 0.25 * scale  # the turntable's thickness below the floor
-    tree = ArmTree()
+    tree = ArmTree(collision_shapes=collision_shapes)
 
     base = add_static_body(spec, "base")
     radius = a / 2 + 0.35 * scale

@@ -10,12 +10,21 @@ import numpy as np
 from ikbranch_gym.envs.kinematics import Arm, make_arm
 from ikbranch_gym.envs.tools import Tool, ToolPart
 
-from .builders import COLLISION_BIT, TREE_BUILDERS, ArmTree, exclude
+from .builders import (
+    COLLISION_BIT,
+    TREE_BUILDERS,
+    ArmTree,
+    check_collision_shapes,
+    exclude,
+)
 from .scenes import SCENES, default_tool
 
 
-def arm_spec(arm: Arm, *, tool: bool = False) -> tuple[mujoco.MjSpec, ArmTree]:
-    """A fresh ``MjSpec`` holding the floor, lights and ``arm``'s tree (no obstacles)."""
+def arm_spec(arm: Arm, *, tool: bool = False,
+             collision_shapes: str = "drawn") -> tuple[mujoco.MjSpec, ArmTree]:
+    """A fresh ``MjSpec`` holding the floor, lights and ``arm``'s tree (no obstacles),
+    with collision shapes of the generation ``collision_shapes`` (``envs.models.builders``)."""
+    check_collision_shapes(collision_shapes)
     try:
         builder = TREE_BUILDERS[arm.name]
     except KeyError:
@@ -57,15 +66,20 @@ def arm_spec(arm: Arm, *, tool: bool = False) -> tuple[mujoco.MjSpec, ArmTree]:
     light.diffuse = np.array([0.6, 0.6, 0.6])
     light.castshadow = True
 
-    tree = builder(spec, arm, tool)
+    tree = builder(spec, arm, tool, collision_shapes)
+    tree.collision_shapes = collision_shapes
     exclude(spec, "world", "base")  # the base stands on the floor
     return spec, tree
 
 
 def build_arm_model(
-    arm: Arm, scene: str = "empty", *, tool: bool | Tool | None = None, **scene_kwargs: Any
+    arm: Arm, scene: str = "empty", *, tool: bool | Tool | None = None,
+    collision_shapes: str = "drawn", **scene_kwargs: Any
 ) -> mujoco.MjModel:
     """Compile ``arm`` (any registered ``Arm`` instance, any parameters) in ``scene``.
+
+    ``collision_shapes``: ``"drawn"`` (every collision shape is the drawn shape) or
+    ``"inscribed"`` (the earlier models: see ``envs.models.builders``).
 
     ``tool``: True adds the built-in held tool (a 0.35 m cylinder along the tool axis from
     the fk frame, body ``tool``); by default it is on in scenes that are about carrying a
@@ -79,7 +93,7 @@ def build_arm_model(
         raise ValueError(f"unknown scene {scene!r}; choose one of {', '.join(SCENES)}") from None
     if tool is None:
         tool = default_tool(scene)
-    spec, tree = arm_spec(arm, tool=tool is True)
+    spec, tree = arm_spec(arm, tool=tool is True, collision_shapes=collision_shapes)
     if isinstance(tool, Tool):
         add_tool(spec, tree, tool)
     model = scene_builder(spec, arm, tree, **scene_kwargs)
@@ -90,8 +104,10 @@ def build_arm_model(
 def add_tool(spec: mujoco.MjSpec, tree: ArmTree, tool: Tool) -> None:
     """``tool``'s solids (visual and collision twins of each part, ``envs/tools.py``) in a
     body ``tool`` welded to the fk frame (the site ``ee``), and a site ``tcp`` at its TCP.
-    Part 0 is the geom ``tool``, part i the geom ``tool_<i>``. The tool does not collide
-    with the two bodies before the fk frame's (it is mounted through them)."""
+    Part 0 is the geom ``tool``, part i the geom ``tool_<i>``. The tool meets every body
+    but the fk frame's and its parent (MuJoCo's rule for a welded body); in the earlier
+    models (``collision_shapes="inscribed"``) it also passed the two bodies before the fk
+    frame's (mounted through them)."""
     if not tree.ee_body:
         raise ValueError("a tool needs an arm with an fk frame (site ee); two-arm systems "
                          "have none")
@@ -109,6 +125,8 @@ def add_tool(spec: mujoco.MjSpec, tree: ArmTree, tool: Tool) -> None:
     site.quat = tcp_quat
     site.size = np.array([0.02, 0.0, 0.0])
     tree.tool_body = holder.name
+    if tree.collision_shapes == "drawn":
+        return
     body, mounts = spec.body(tree.ee_body), []
     for _ in range(2):
         parent = body.parent

@@ -724,7 +724,7 @@ def file_scene(
                             coacd_options=coacd_options)
     add_scene_file(spec, scene, floor=floor)
     try:
-        return compile_spec(spec)
+        return compile_spec(spec, collision_shapes=tree.collision_shapes)
     except ValueError as exc:
         raise SceneFileError(scene.path, f"merged with arm {arm.name!r}, MuJoCo cannot "
                              f"compile it: {_one_line(exc)}") from None

@@ -36,7 +36,14 @@ from ikbranch_gym.envs.kinematics.paper_example import (
     example_poses,
 )
 
-from .builders import STEEL, ArmTree, add_part, add_static_body, compile_spec
+from .builders import (
+    STEEL,
+    ArmTree,
+    add_part,
+    add_static_body,
+    compile_spec,
+    inscribe_cylinders,
+)
 from .collision import DEFAULT_RESOLUTION, CollisionChecker
 from .filter.layout import _GEOM_BOX, _GEOM_CAPSULE, _GEOM_CYLINDER
 from .scene_file import file_scene
@@ -66,7 +73,7 @@ def milling_cell_poses() -> tuple[np.ndarray, np.ndarray]:
 
 # ----------------------------------------------------------------------------- scenes
 def empty(spec: mujoco.MjSpec, arm: Arm, tree: ArmTree) -> mujoco.MjModel:
-    return compile_spec(spec)
+    return compile_spec(spec, collision_shapes=tree.collision_shapes)
 
 
 def _box(body, name, lo, hi, rgba) -> None:
@@ -147,7 +154,7 @@ def milling_cell(spec: mujoco.MjSpec, arm: Arm, tree: ArmTree, *, base_pos=None,
     # forearm of the elbow-up solutions; an elbow-down forearm comes in lower and hits it.
     _box(machine, "mill_chip_guard", (x2 - 0.55, y2 - 0.32, z2 - 0.25),
          (x2 + 0.50, y2 - 0.30, z2 - 0.03), STEEL)
-    return compile_spec(spec)
+    return compile_spec(spec, collision_shapes=tree.collision_shapes)
 
 
 @dataclass(frozen=True)
@@ -256,8 +263,8 @@ def random_clutter(
 
     ``seed=None``: a scene whose clutter changes at every episode without a recompile
     (:class:`ClutterSlots`): ``n_obstacles`` obstacle slots, each a primitive box and a
-    cylinder (collided as the capsule inside it, as every cylinder here), all parked out
-    of reach until :meth:`ClutterSlots.lay` places a drawn clutter.
+    cylinder (collided as the cylinder, or as the capsule inside it in the earlier models),
+    all parked out of reach until :meth:`ClutterSlots.lay` places a drawn clutter.
     """
     if seed is None:
         for k in range(n_obstacles):
@@ -266,7 +273,10 @@ def random_clutter(
                      pos=PARKED)
             add_part(body, f"clutter{k}_cylinder", "cylinder", [0.1, 0.2], CLUTTER_RGBA,
                      pos=PARKED)
-        return compile_spec(spec, primitive_boxes=lambda name: name.startswith("clutter"))
+        return compile_spec(spec, primitive_boxes=lambda name: name.startswith("clutter"),
+                            collision_shapes=tree.collision_shapes)
+    if tree.collision_shapes == "inscribed":
+        inscribe_cylinders(spec)  # the base's footprint as the earlier models drew it
     base_model = spec.compile()
     obstacles = draw_clutter(arm, seed, _static_arm_discs(base_model), n_obstacles)
     bodies = []
@@ -279,13 +289,13 @@ def random_clutter(
             add_part(body, name, "cylinder", [obstacle.half[0], obstacle.half[2]], CLUTTER_RGBA,
                      pos=list(obstacle.pos))
         bodies.append(body)
-    model = compile_spec(spec)
+    model = compile_spec(spec, collision_shapes=tree.collision_shapes)
     checker = CollisionChecker(model, dof=arm.dof, resolution=clearance)
     touching = {name for c in checker.contacts(arm.home) for name in (c.body1, c.body2)}
     for body in bodies:
         if body.name in touching:
             spec.delete(body)
-    return compile_spec(spec) if touching else model
+    return compile_spec(spec, collision_shapes=tree.collision_shapes) if touching else model
 
 
 #: Obstacle slots of a per-episode clutter (``random_clutter`` with ``seed=None``).
@@ -324,12 +334,15 @@ class ClutterSlots:
         if not self._primitive:
             raise ValueError("clutter slot geoms must be boxes, cylinders or capsules")
         # Rows (slot, parts, half x, y, z, pos x, y, z); parts: 0 the box geoms (box and
-        # its visual), 1 the cylinder geoms, 2 a disc (collided as the box around it, as
-        # add_part builds it: the box and the visual cylinder).
+        # its visual), 1 the cylinder geoms, 2 a disc where the earlier models collide
+        # cylinders as capsules (collided as the box around it: the box and the visual
+        # cylinder).
+        inscribed = self._types[2] == _GEOM_CAPSULE
         flat: list[float] = []
         for obstacle in obstacles:
             half = obstacle.half
-            parts = 0 if obstacle.kind == "box" else 1 if half[2] >= half[0] else 2
+            parts = (0 if obstacle.kind == "box"
+                     else 2 if inscribed and half[2] < half[0] else 1)
             flat += (obstacle.slot, parts, *half, *obstacle.pos)
         rows = np.array(flat, dtype=np.float64).reshape(-1, 8)
         n_geoms = len(self.geoms)

@@ -97,10 +97,28 @@ REQUIRED_IDS = {
     "IKBranch/IRB4600ToolTransfer-v0": (
         "abb_irb4600", "milling_cell", "tool_changes", "compact", False),
 }
+#: The current generation: each id of the one before, collided as drawn.
+CURRENT = {
+    "IKBranch/Cartesian-v3": "IKBranch/Cartesian-v2",
+    "IKBranch/Cylindrical-v3": "IKBranch/Cylindrical-v2",
+    "IKBranch/Spherical-v3": "IKBranch/Spherical-v2",
+    "IKBranch/Anthropomorphic-v3": "IKBranch/Anthropomorphic-v2",
+    "IKBranch/Cylindrical4-v3": "IKBranch/Cylindrical4-v2",
+    "IKBranch/ToolTransfer-v2": "IKBranch/ToolTransfer-v1",
+    "IKBranch/DualRRPRPP-v2": "IKBranch/DualRRPRPP-v1",
+    "IKBranch/DualRRRPPP-v2": "IKBranch/DualRRRPPP-v1",
+    "IKBranch/DualPPRPRR-v2": "IKBranch/DualPPRPRR-v1",
+    "IKBranch/RodMechanism-v3": "IKBranch/RodMechanism-v2",
+    "IKBranch/KukaKR6-v1": "IKBranch/KukaKR6-v0",
+    "IKBranch/UR5e-v1": "IKBranch/UR5e-v0",
+    "IKBranch/IRB4600ToolTransfer-v1": "IKBranch/IRB4600ToolTransfer-v0",
+    "IKBranch/IRB2600Screwing-v1": "IKBranch/IRB2600Screwing-v0",
+}
 
 
 def test_every_required_id_is_registered_and_makes_what_it_says():
-    assert set(envs.ENV_IDS) == set(REQUIRED_IDS)
+    assert set(envs.ENV_IDS) == set(REQUIRED_IDS) | set(CURRENT)
+    assert envs.CURRENT_IDS == tuple(CURRENT)
     for env_id, (arm, scene, task, observation, per_episode) in REQUIRED_IDS.items():
         spec = gym.spec(env_id)
         assert spec.entry_point == "ikbranch_gym.envs.ik_branch_env:IKBranchEnv", env_id
@@ -108,6 +126,12 @@ def test_every_required_id_is_registered_and_makes_what_it_says():
         assert (made["arm"], made["scene"], made["task"], made["observation"]) == (
             arm, scene, task, observation), env_id
         assert (made["scene_seed"] is None) == per_episode, env_id
+        assert made["collision_shapes"] == "inscribed", env_id
+    for env_id, before in CURRENT.items():
+        now, then = dict(gym.spec(env_id).kwargs), dict(gym.spec(before).kwargs)
+        assert (now.pop("collision_shapes"), then.pop("collision_shapes")) == (
+            "drawn", "inscribed"), env_id
+        assert now == then, env_id
 
 
 def test_registered_ids_are_documented_constructor_arguments():

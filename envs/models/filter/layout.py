@@ -12,9 +12,10 @@ geoms that moved (the per-episode clutter).
 
 Beside the container, each geom has an *inner* shape that it holds (:func:`inner`): itself
 where it is a sphere, capsule, box, a mesh whose hull is its bounding box, or a plane; the
-capsule inside a cylinder, the sphere inside an ellipsoid. Two inner shapes closer than a
-pair's margin (less ``WITNESS_TOLERANCE``) prove the pair in contact: MuJoCo's colliders
-report it (``docs/models.md`` has the study of MuJoCo's colliders behind this). Two
+capsule inside a cylinder (the square prism inside a disc), the sphere inside an
+ellipsoid. Two inner shapes closer than a pair's margin (less ``WITNESS_TOLERANCE``) prove
+the pair in contact: MuJoCo's colliders report it (``docs/models.md`` has the study of
+MuJoCo's colliders behind this). Two
 colliders do not: a pair of primitive boxes (which misses some contacts inside the margin
 and reports some outside it) gets no witness, and a primitive capsule–box pair none where
 the capsule's axis passes through the box with both ends outside it (a "skewer", which
@@ -48,6 +49,8 @@ WITNESS_TOLERANCE = 1e-5
 OUT_OF_REACH = 3
 #: Container shapes (codes shared with the kernels).
 SPHERE, CAPSULE, BOX, CYLINDER, PLANE, UNBOUNDED = 0, 1, 2, 3, 4, 5
+#: A disc's inner square prism: half-sides radius / √2 (its corners on the rim).
+_HALF_SQRT2 = math.sqrt(0.5)
 #: The inner shape of a geom that has none the kernels can measure.
 NO_INNER = -1
 #: Joint type codes, MuJoCo's own.
@@ -223,10 +226,10 @@ def _inner(geom_type, size, aabb, box_mesh):
         return CAPSULE, (s0, s1, 0.0)
     if geom_type == _GEOM_BOX:
         return BOX, (s0, s1, s2)
-    if geom_type == _GEOM_CYLINDER:  # the capsule of its radius, or a sphere in a disc
+    if geom_type == _GEOM_CYLINDER:  # the capsule of its radius, or the square in a disc
         if s1 >= s0:
             return CAPSULE, (s0, s1 - s0, 0.0)
-        return SPHERE, (s1, 0.0, 0.0)
+        return BOX, (s0 * _HALF_SQRT2, s0 * _HALF_SQRT2, s1)
     if geom_type == _GEOM_ELLIPSOID:
         return SPHERE, (min(s0, min(s1, s2)), 0.0, 0.0)
     if geom_type == _GEOM_MESH and box_mesh:
@@ -466,10 +469,11 @@ def compile_scene(model: mujoco.MjModel, dof: int, pairs: np.ndarray) -> Compile
         slot_extent=extent,
         pair_margin=margin + DISTANCE_TOLERANCE,
         pair_lever=pair_lever,
-        # Bounding radii plus margin: a plane (always ``b``) adds no radius.
+        # Bounding radii plus margin: a plane (always ``b``) adds no radius. Summed as
+        # ``refresh_static`` sums them, so a refresh rewrites the same bits.
         pair_reach=(slot_radius[pair_a] + np.where(slot_type[pair_b] == PLANE, 0.0,
                                                    slot_radius[pair_b])
-                    + margin + DISTANCE_TOLERANCE),
+                    + (margin + DISTANCE_TOLERANCE)),
         slot_lever=np.where(np.arange(model.njnt) < dof, levers, 0.0),
         slot_moved=moved & (np.arange(model.njnt) < dof),
         jnt_body=model.jnt_bodyid.astype(np.int64),

@@ -18,7 +18,7 @@ ARMS = ("anthropomorphic", "cylindrical", "kuka_kr6_r700")
 
 
 def _env(arm: str, **kwargs):
-    return gym.make("IKBranch/Anthropomorphic-v2", arm=arm, n_waypoints=3, **kwargs).unwrapped
+    return gym.make("IKBranch/Anthropomorphic-v3", arm=arm, n_waypoints=3, **kwargs).unwrapped
 
 
 @pytest.mark.parametrize("arm_name", ARMS)

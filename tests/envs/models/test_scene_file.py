@@ -192,9 +192,10 @@ def test_milling_cell_file_names_and_groups():
         assert model.geom_contype[col] == model.geom_conaffinity[col] == 1
         assert model.body(model.geom_bodyid[col]).name == f"scene/{obstacle.split('_')[0]}"
         assert model.body_weldid[model.geom_bodyid[col]] == 0  # static
-    # contype = conaffinity = 0 in the file: a visual twin only
-    assert "scene/mill_quill_shape_vis" in names and "scene/mill_quill_shape" not in names
-    assert model.geom_type[names["scene/mill_quill_shape_vis"]] == mujoco.mjtGeom.mjGEOM_CYLINDER
+    # A cylinder is collided as drawn (contype = conaffinity = 0 in a file makes a geom a
+    # visual twin only: test_meshdir_and_decompose_modes).
+    for twin in ("scene/mill_quill", "scene/mill_quill_vis"):
+        assert model.geom_type[names[twin]] == mujoco.mjtGeom.mjGEOM_CYLINDER
     # colours from the file's default classes
     np.testing.assert_allclose(model.geom_rgba[names["scene/rack_cabinet_vis"]],
                                (0.35, 0.40, 0.55, 1), atol=1e-7)
