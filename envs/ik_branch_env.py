@@ -157,7 +157,7 @@ class IKBranchEnv(gym.Env):
     branch.
 
     ## Arguments
-    ``gym.make("IKBranch/Anthropomorphic-v2", **kwargs)``; every argument is JSON-able.
+    ``gym.make("IKBranch/Anthropomorphic-v3", **kwargs)``; every argument is JSON-able.
 
     ===================== ======================= ===========================================
     argument              default                 meaning
@@ -194,6 +194,20 @@ class IKBranchEnv(gym.Env):
     ===================== ======================= ===========================================
 
     ## Version history
+    - The current generation (2026-12-04): Cartesian, Cylindrical, Spherical,
+      Anthropomorphic, Cylindrical4 **-v3**, ToolTransfer **-v2**, DualRRPRPP, DualRRRPPP,
+      DualPPRPRR **-v2**, RodMechanism **-v3**, KukaKR6, UR5e, IRB4600ToolTransfer,
+      IRB2600Screwing **-v1**: every collision shape is the drawn shape
+      (``collision_shapes="drawn"``): cylinders are collided as cylinders (before: as the
+      capsule inside them, a disc as the box around it), and only a joint's own two sides
+      are excluded from each other (before: the overlapping parts of wrists and guides
+      too), so the wrists' roll housings end farther behind the wrist centre, the
+      cylindrical arms' radial slide is a fork of two rails beside the column and the
+      spherical arm's boom swings between two cheeks. A move these ids call free keeps
+      every drawn part apart all along it (certified by a second collision library in the
+      tests). Observations, rewards and tasks are made as before; verdicts change where
+      the shapes did. The ids before stay registered, unchanged
+      (``collision_shapes="inscribed"``), for their published models.
     - Same ids, same behaviour (2026-12-03): ``reset(options=…)`` takes ``scene_seed`` and
       ``task_seed`` (options were ignored before; any other key is now an error); the
       opt-in ``optimal_return`` argument; the package is imported as ``ikbranch_gym``
@@ -204,7 +218,7 @@ class IKBranchEnv(gym.Env):
       called only where neither proof holds (verdicts and first colliding samples are
       MuJoCo's, as before: observations and rewards are unchanged, tested as streams of
       steps on every id).
-    - The current generation: Cartesian, Cylindrical, Spherical, Anthropomorphic,
+    - The compact generation: Cartesian, Cylindrical, Spherical, Anthropomorphic,
       Cylindrical4 **-v2**, ToolTransfer **-v1**, DualRRPRPP, DualRRRPPP, DualPPRPRR **-v1**,
       RodMechanism **-v2**, and the industrial arms (real limits, every turn branch)
       KukaKR6 **-v0**, UR5e **-v0** (random clutter), IRB4600ToolTransfer **-v0** (the

@@ -4,7 +4,7 @@ analytic ones on the milling cell.
     python -m train.demo [--run-dir runs/demo] [--timesteps N] [--episodes 50]
 
 1. Reproduces Klyuiko's (1986) worked example (``python -m envs.worked_example``).
-2. Trains MaskablePPO on ``IKBranch/ToolTransfer-v1`` (configs/hyperparams.yml; skipped
+2. Trains MaskablePPO on ``IKBranch/ToolTransfer-v2`` (configs/hyperparams.yml; skipped
    when the run directory already holds a finished ``model.zip``).
 3. Evaluates it beside ``paper_rule``, ``receding_dp``, ``dp_oracle`` and ``random`` on
    held-out task seeds and prints the table. "It" is the checkpoint with the best return
@@ -34,7 +34,7 @@ import numpy as np
 
 from ikbranch_gym.envs.seeds import DEMO_SEED
 
-ENV_ID = "IKBranch/ToolTransfer-v1"
+ENV_ID = "IKBranch/ToolTransfer-v2"
 #: The baselines of the README's demo table, a subset of ``agents.BASELINES`` chosen for
 #: it (the paper's rule, both planners, chance): the table, and so this list, is as published.
 DEMO_BASELINES = ("paper_rule", "receding_dp", "dp_oracle", "random")

@@ -391,7 +391,7 @@ def _column_lift_turn_radial(spec: mujoco.MjSpec, arm: Arm, tree: ArmTree,
 
 
 #: The drawn cylindrical arms' fork: rails this far either side of the arm axis (m).
-FORK_HALF_WIDTH = 0.20
+FORK_HALF_WIDTH = 0.30
 
 
 def _column_lift_turn_fork(spec: mujoco.MjSpec, arm: Arm, tree: ArmTree,

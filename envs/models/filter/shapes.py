@@ -299,14 +299,96 @@ def _bound_ordered(ka, ca, ra, sa0, sa1, sa2, kb, cb, rb, sb0, sb1, sb2, enough)
     return -math.inf
 
 
+@njit(inline="always")
+def _cylinder_gap(x, y, z, r, h):
+    """Distance of a point (cylinder frame) from the solid cylinder of radius ``r`` and
+    half-height ``h`` about z, and the vector from its nearest point (0 inside)."""
+    rho = math.sqrt(x * x + y * y)
+    scale = 1.0 - r / rho if rho > r else 0.0
+    dz = z - h if z > h else (z + h if z < -h else 0.0)
+    ex, ey = x * scale, y * scale
+    return math.sqrt(ex * ex + ey * ey + dz * dz), ex, ey, dz
+
+
+@njit
+def _segment_cylinder(px, py, pz, qx, qy, qz, c, rot, r, h):
+    """Lower bound on the distance of the segment pq from a solid cylinder (centre ``c``,
+    rotation ``rot``, radius ``r``, half-height ``h``), within 1e-6 of it.
+
+    The distance from a convex set is convex along the segment: golden-section search
+    keeps its minimiser bracketed, and the tangents at the bracket's ends (gradients: the
+    unit vectors from the nearest points) bound it from below.
+    """
+    ax, ay, az = _to_box(px, py, pz, c, rot)
+    bx, by, bz = _to_box(qx, qy, qz, c, rot)
+    dx, dy, dz = bx - ax, by - ay, bz - az
+    lo, hi = 0.0, 1.0
+    ratio = 0.6180339887498949
+    m1, m2 = hi - ratio * (hi - lo), lo + ratio * (hi - lo)
+    f1 = _cylinder_gap(ax + m1 * dx, ay + m1 * dy, az + m1 * dz, r, h)[0]
+    f2 = _cylinder_gap(ax + m2 * dx, ay + m2 * dy, az + m2 * dz, r, h)[0]
+    length = math.sqrt(dx * dx + dy * dy + dz * dz)
+    while (hi - lo) * length > 1e-6:
+        if f1 <= f2:
+            hi, m2, f2 = m2, m1, f1
+            m1 = hi - ratio * (hi - lo)
+            f1 = _cylinder_gap(ax + m1 * dx, ay + m1 * dy, az + m1 * dz, r, h)[0]
+        else:
+            lo, m1, f1 = m1, m2, f2
+            m2 = lo + ratio * (hi - lo)
+            f2 = _cylinder_gap(ax + m2 * dx, ay + m2 * dy, az + m2 * dz, r, h)[0]
+    best = math.inf
+    for t in (lo, hi):
+        f, ex, ey, ez = _cylinder_gap(ax + t * dx, ay + t * dy, az + t * dz, r, h)
+        best = min(best, f)
+    f_lo, ex, ey, ez = _cylinder_gap(ax + lo * dx, ay + lo * dy, az + lo * dz, r, h)
+    g_lo = (ex * dx + ey * dy + ez * dz) / f_lo if f_lo > 0.0 else 0.0
+    f_hi, ex, ey, ez = _cylinder_gap(ax + hi * dx, ay + hi * dy, az + hi * dz, r, h)
+    g_hi = (ex * dx + ey * dy + ez * dz) / f_hi if f_hi > 0.0 else 0.0
+    # Over [lo, hi] (where the minimum lies) f is above both tangents.
+    if g_lo >= 0.0:
+        bound = f_lo
+    elif g_hi <= 0.0:
+        bound = f_hi
+    else:
+        t = (f_hi - f_lo + g_lo * lo - g_hi * hi) / (g_lo - g_hi)
+        bound = f_lo + g_lo * (t - lo)
+    return min(bound, best) - 1e-9
+
+
 @njit
 def _bound_pair(ka, ca, ra, sa, kb, cb, rb, sb, enough):
     """Lower bound on the distance of two slots' containers, any kinds: a cylinder is held
     by the capsule of its radius over its axis and by its box, so the larger of the two
-    bounds holds; an unbounded kind gives −inf (MuJoCo decides). A bound that reaches
-    ``enough`` may stop there (``math.inf``: the best bound)."""
+    bounds holds; where that is short of ``enough`` and the partner is a sphere, capsule
+    or cylinder (by its capsule), the distance of the partner's axis from the cylinder
+    itself (:func:`_segment_cylinder`) bounds it too. An unbounded kind gives −inf (MuJoCo
+    decides). A bound that reaches ``enough`` may stop there (``math.inf``: the best
+    bound)."""
     if ka == UNBOUNDED or kb == UNBOUNDED or (ka == PLANE and kb == PLANE):
         return -math.inf
+    best = _container_bound(ka, ca, ra, sa, kb, cb, rb, sb, enough)
+    if best >= enough:
+        return best
+    if kb == CYLINDER and ka <= CYLINDER and ka != BOX:
+        best = max(best, _axis_cylinder(ka, ca, ra, sa, cb, rb, sb))
+    if ka == CYLINDER and kb <= CYLINDER and kb != BOX:
+        best = max(best, _axis_cylinder(kb, cb, rb, sb, ca, ra, sa))
+    return best
+
+
+@njit
+def _axis_cylinder(ka, ca, ra, sa, cb, rb, sb):
+    """Lower bound on the distance of a sphere, capsule or cylinder (its capsule) ``a``
+    from the solid cylinder ``b``."""
+    half = 0.0 if ka == SPHERE else sa[1]
+    e = _capsule_ends(ca, ra, half)
+    return _segment_cylinder(e[0], e[1], e[2], e[3], e[4], e[5], cb, rb, sb[0], sb[1]) - sa[0]
+
+
+@njit
+def _container_bound(ka, ca, ra, sa, kb, cb, rb, sb, enough):
+    """:func:`_bound_pair` over the containers alone."""
     best = -math.inf
     for use_a in range(2 if ka == CYLINDER else 1):
         ta, a0, a1, a2 = ka, sa[0], sa[1], sa[2]

@@ -4,6 +4,8 @@ the drawn shapes of the pairs excluded beyond a joint's own two sides)."""
 
 from __future__ import annotations
 
+import hashlib
+
 import gymnasium as gym
 import mujoco
 import numpy as np
@@ -152,3 +154,49 @@ def test_the_earlier_wrist_exclusions_hid_overlaps():
     # The check above can fail: the earlier Anthropomorphic wrist's roll housing and flange
     # overlap at random configurations.
     assert _hidden_overlap("IKBranch/Anthropomorphic-v2", 300) < -0.01
+
+
+#: SHA-256 (first 16 hex digits) of the compiled model of every id of the earlier
+#: generations (geom types, sizes, poses and contact bits, exclusions, body frames, mesh
+#: vertices; after ``reset(seed=0)`` with two waypoints), recorded from the code before
+#: the drawn generation existed.
+EARLIER_MODELS = {
+    "IKBranch/Cartesian-v1": "ce20e5b616a3a405",
+    "IKBranch/Cylindrical-v1": "636dfa60baf98e13",
+    "IKBranch/Spherical-v1": "2db42145bf45fcfb",
+    "IKBranch/Anthropomorphic-v1": "55de1750953f5084",
+    "IKBranch/Cylindrical4-v1": "80934b38c1154ea1",
+    "IKBranch/ToolTransfer-v0": "d93d1d4b6902fbb9",
+    "IKBranch/DualRRPRPP-v0": "5d9064c0b437830e",
+    "IKBranch/DualRRRPPP-v0": "326900de02e01723",
+    "IKBranch/DualPPRPRR-v0": "038721eecba1da53",
+    "IKBranch/RodMechanism-v1": "a9e340db13921160",
+    "IKBranch/Cartesian-v2": "4215eabe5fa68ca5",
+    "IKBranch/Cylindrical-v2": "05c0695881e37ae0",
+    "IKBranch/Spherical-v2": "77d750ae0feb04d1",
+    "IKBranch/Anthropomorphic-v2": "d1db5d82df98d45f",
+    "IKBranch/Cylindrical4-v2": "4a580aa0e9ac82e5",
+    "IKBranch/ToolTransfer-v1": "d93d1d4b6902fbb9",
+    "IKBranch/DualRRPRPP-v1": "5d9064c0b437830e",
+    "IKBranch/DualRRRPPP-v1": "326900de02e01723",
+    "IKBranch/DualPPRPRR-v1": "038721eecba1da53",
+    "IKBranch/RodMechanism-v2": "a9e340db13921160",
+    "IKBranch/KukaKR6-v0": "78206115efc63a7e",
+    "IKBranch/UR5e-v0": "ce8a1cf167e32fc8",
+    "IKBranch/IRB4600ToolTransfer-v0": "b763971bb91590d0",
+    "IKBranch/IRB2600Screwing-v0": "6a7c11748b9134d9",
+}
+
+
+@pytest.mark.regression
+@pytest.mark.parametrize("env_id", sorted(EARLIER_MODELS))
+def test_the_earlier_ids_keep_their_models(env_id):
+    env = gym.make(env_id, n_waypoints=2)
+    env.reset(seed=0)
+    model = env.unwrapped.model
+    digest = hashlib.sha256()
+    for array in (model.geom_type, model.geom_size, model.geom_pos, model.geom_quat,
+                  model.geom_contype, np.sort(model.exclude_signature), model.body_pos,
+                  model.body_quat, model.mesh_vert):
+        digest.update(np.ascontiguousarray(array).tobytes())
+    assert digest.hexdigest()[:16] == EARLIER_MODELS[env_id]
