@@ -158,7 +158,8 @@ def test_the_wheel_installs_into_a_fresh_venv_with_core_extras_then_trains(tmp_p
     """, cwd=user, python=python)
     assert result.returncode == 0, result.stderr
     first, second = result.stdout.strip().splitlines()[-2:]
-    assert first.split() == ["user", "envs", "0.1.0", "True"]
+    version = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["version"]
+    assert first.split() == ["user", "envs", version, "True"]
     assert second == "[]"
     for name in ("torch", "stable_baselines3", "ray", "coacd"):
         probe = _python(f"import {name}", cwd=user, python=python)
