@@ -351,6 +351,78 @@ def _moved_by(model: mujoco.MjModel, body: int) -> np.ndarray:
     return moved
 
 
+#: Collinearity tolerance (m, and sines) of the symmetry test below.
+_ON_LINE = 1e-9
+
+
+def _keeps_line(model: mujoco.MjModel, data: mujoco.MjData, joint: int, point: np.ndarray,
+                direction: np.ndarray) -> bool:
+    """Whether ``joint`` maps the world line (``point``, unit ``direction``, at ``data``'s
+    configuration) to itself: a slide along it, or a hinge about it."""
+    axis = data.xaxis[joint]
+    if np.linalg.norm(np.cross(axis, direction)) > _ON_LINE:
+        return False
+    if model.jnt_type[joint] == _SLIDE:
+        return True
+    return bool(np.linalg.norm(np.cross(data.xanchor[joint] - point, direction)) <= _ON_LINE)
+
+
+def _line_fixed_between(model: mujoco.MjModel, data: mujoco.MjData, point: np.ndarray,
+                        direction: np.ndarray, lower: int, upper: int) -> bool:
+    """Whether a line fixed to body ``lower`` stays fixed relative to body ``upper`` (an
+    ancestor, or welded to one) in every configuration: every joint on the way up keeps
+    it (slides along it, hinges about it)."""
+    target, body = int(model.body_weldid[upper]), lower
+    while int(model.body_weldid[body]) != target:
+        first, count = int(model.body_jntadr[body]), int(model.body_jntnum[body])
+        if not all(_keeps_line(model, data, j, point, direction)
+                   for j in range(first, first + count)):
+            return False
+        if body == 0:
+            return False
+        body = int(model.body_parentid[body])
+    return True
+
+
+def _symmetric_about(model: mujoco.MjModel, data: mujoco.MjData, geom: int,
+                     point: np.ndarray, direction: np.ndarray) -> bool:
+    """Whether the world line (``point``, ``direction``) is an axis of symmetry of
+    ``geom`` at ``data``'s configuration: a sphere's centre on it, or a capsule's or
+    cylinder's axis along it."""
+    offset = np.linalg.norm(np.cross(data.geom_xpos[geom] - point, direction))
+    if model.geom_type[geom] == _GEOM_SPHERE:
+        return bool(offset <= _ON_LINE)
+    if model.geom_type[geom] in (_GEOM_CAPSULE, _GEOM_CYLINDER):
+        axis = data.geom_xmat[geom].reshape(3, 3)[:, 2]
+        return bool(offset <= _ON_LINE
+                    and np.linalg.norm(np.cross(axis, direction)) <= _ON_LINE)
+    return False
+
+
+def _turns_about_symmetry(model: mujoco.MjModel, data: mujoco.MjData, joint: int,
+                          mover: int, other: int) -> bool:
+    """Whether hinge ``joint``, which moves geom ``mover`` and not geom ``other`` (both on
+    moving bodies), leaves their distance unchanged in every configuration: its axis line
+    is an axis of symmetry of ``mover`` and fixed to mover's body (mover spins in place),
+    or of ``other`` and fixed to other's body (the pair turns about other's axis). Such a
+    joint drops out of the pair's lever. Static geoms are left out: a refresh may move
+    them (``refresh_static``)."""
+    home = int(model.jnt_bodyid[joint])
+    if model.jnt_type[joint] == _SLIDE or model.body_jntnum[home] != 1:
+        return False
+    point, direction = data.xanchor[joint].copy(), data.xaxis[joint].copy()
+    direction /= np.linalg.norm(direction)
+    mover_body, other_body = int(model.geom_bodyid[mover]), int(model.geom_bodyid[other])
+    if model.body_weldid[other_body] == 0:
+        return False
+    spins = (_symmetric_about(model, data, mover, point, direction)
+             and _line_fixed_between(model, data, point, direction, mover_body, home))
+    turns_around = (_symmetric_about(model, data, other, point, direction)
+                    and _line_fixed_between(model, data, point, direction,
+                                            int(model.body_parentid[home]), other_body))
+    return spins or turns_around
+
+
 def _joints_after(model: mujoco.MjModel) -> np.ndarray:
     """(njnt, njnt) bool: joint i acts after joint j on the way out to the tips (a later
     joint of j's body, or a joint of a body below it): what moves points relative to j's
@@ -425,6 +497,13 @@ def compile_scene(model: mujoco.MjModel, dof: int, pairs: np.ndarray) -> Compile
         else:  # joints that move both turn the pair rigidly together and drop out
             only_a, only_b = moved[a] & ~moved[b], moved[b] & ~moved[a]
             pair_lever[k] = np.where(only_a, levers[a], 0.0) + np.where(only_b, levers[b], 0.0)
+            # So do joints that turn one about a line that is an axis of symmetry of
+            # either geom, fixed to that geom's body in every configuration.
+            for j in np.flatnonzero(pair_lever[k]):
+                mover, other = (a, b) if only_a[j] else (b, a)
+                if _turns_about_symmetry(model, data, int(j), int(geoms[mover]),
+                                         int(geoms[other])):
+                    pair_lever[k, j] = 0.0
     pair_lever[:, dof:] = 0.0
     pair_contact = np.where(_witnessed(model, geoms, pair_a, pair_b, slot_inner),
                             margin - WITNESS_TOLERANCE, -math.inf)
