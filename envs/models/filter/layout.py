@@ -499,11 +499,11 @@ def compile_scene(model: mujoco.MjModel, dof: int, pairs: np.ndarray) -> Compile
             pair_lever[k] = np.where(only_a, levers[a], 0.0) + np.where(only_b, levers[b], 0.0)
             # So do joints that turn one about a line that is an axis of symmetry of
             # either geom, fixed to that geom's body in every configuration.
-            for j in np.flatnonzero(pair_lever[k]):
-                mover, other = (a, b) if only_a[j] else (b, a)
-                if _turns_about_symmetry(model, data, int(j), int(geoms[mover]),
+            for joint in np.flatnonzero(pair_lever[k]).tolist():
+                mover, other = (a, b) if only_a[joint] else (b, a)
+                if _turns_about_symmetry(model, data, joint, int(geoms[mover]),
                                          int(geoms[other])):
-                    pair_lever[k, j] = 0.0
+                    pair_lever[k, joint] = 0.0
     pair_lever[:, dof:] = 0.0
     pair_contact = np.where(_witnessed(model, geoms, pair_a, pair_b, slot_inner),
                             margin - WITNESS_TOLERANCE, -math.inf)
