@@ -200,3 +200,8 @@ def test_the_earlier_ids_keep_their_models(env_id):
                   model.body_quat, model.mesh_vert):
         digest.update(np.ascontiguousarray(array).tobytes())
     assert digest.hexdigest()[:16] == EARLIER_MODELS[env_id]
+
+
+def test_an_unknown_generation_of_collision_shapes_is_refused():
+    with pytest.raises(ValueError, match="collision_shapes must be one of drawn, inscribed"):
+        gym.make("IKBranch/Cartesian-v3", collision_shapes="capsules")
