@@ -1,6 +1,6 @@
 """``python -m train``: train PPO or MaskablePPO on a registered IKBranch env.
 
-    python -m train --algo maskable_ppo --env IKBranch/ToolTransfer-v0 \\
+    python -m train --algo maskable_ppo --env IKBranch/ToolTransfer-v2 \\
         --timesteps 150000 --seed 0 --n-envs 2 --run-dir runs/tool_transfer
 
 Hyper-parameters come from ``configs/hyperparams.yml`` (or ``--config``), keyed by env id;
@@ -32,7 +32,7 @@ def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m train", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--algo", required=True, choices=sorted(ALGORITHMS))
-    p.add_argument("--env", required=True, help="a registered id, e.g. IKBranch/ToolTransfer-v0")
+    p.add_argument("--env", required=True, help="a registered id, e.g. IKBranch/ToolTransfer-v2")
     p.add_argument("--config", help="YAML file keyed by env id (default configs/hyperparams.yml)")
     p.add_argument("--env-kwargs", type=_json_object, default={}, help="JSON object")
     p.add_argument("--hyperparams", type=_json_object, default={},

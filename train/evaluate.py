@@ -1,6 +1,6 @@
 """Compare policies on the same tasks: ``python -m train.evaluate``.
 
-    python -m train.evaluate --env IKBranch/ToolTransfer-v1 --policy paper_rule \\
+    python -m train.evaluate --env IKBranch/ToolTransfer-v2 --policy paper_rule \\
         --policy receding_dp --policy runs/ppo.zip --episodes 50 \\
         --json results.json --plot results.png
 
@@ -118,7 +118,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         prog="python -m train.evaluate", description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("--env", required=True, help="env id, e.g. IKBranch/Anthropomorphic-v1")
+    parser.add_argument("--env", required=True, help="env id, e.g. IKBranch/Anthropomorphic-v3")
     parser.add_argument("--env-kwargs", type=json.loads, default={},
                         help='JSON dict of env arguments, e.g. \'{"n_waypoints": 12}\'')
     parser.add_argument("--policy", action="append", required=True, dest="policies",
