@@ -49,7 +49,8 @@ class PaperPairRule(Baseline):
             return first_within(move)
         # (K, K): from every candidate of this waypoint to every one of the next.
         transfer, _ = env.ladder.motion(env.candidates[waypoint], waypoint + 1)
-        allowed = mask[:, None] & env.valid[waypoint + 1][None, :]
+        allowed = (mask[:, None] & env.valid[waypoint + 1][None, :]
+                   & ~env.ladder.blocked(env.candidates[waypoint], waypoint + 1))
         total = np.where(allowed, move[:, None] + transfer, np.inf)
         # Row-major flat index: ties go to the lower a, then the lower b.
         return first_within(total) // env.arm.n_branches

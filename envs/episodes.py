@@ -93,6 +93,13 @@ class EpisodeBatch:
         self.free_start = np.zeros(size, dtype=bool)
         self.lengths = np.full(size, n, dtype=np.int64)
         self.templates = np.zeros((size, n + 1, observations.size), dtype=np.float32)
+        #: Per row: process continuity (``envs.process``): which moves lie inside a
+        #: segment, the step limit, and the branch the arm stands in (−1: the start).
+        self.inside = np.zeros((size, n), dtype=bool)
+        self.limits = np.full(size, np.inf)
+        self.branch = np.full(size, -1, dtype=np.int64)
+        self._configuration = np.ascontiguousarray(arm.branch_closed_form, dtype=np.int64)
+        self._revolute = np.ascontiguousarray(arm.revolute_mask)
         #: Per row: the priced moves of its current state into its next waypoint, as
         #: ``_price`` writes them (value and flag blocks of (row, 1, K)), and its
         #: observation.
@@ -123,11 +130,13 @@ class EpisodeBatch:
             self.endpoint, self.free_start, self.lengths, self.templates, self.values,
             self.flags, self.observation, cost.weights, cost.speeds, numbers, slices,
             builder._centre, builder._half_range, pricer.checker.lever, self.scenes,
-            self.tokens, *self._memo)
+            self.tokens, *self._memo, self.inside, self.limits, self._configuration,
+            self._revolute, self.branch)
 
     #: The per-row arrays (a view of one row shares them).
     _ROW_ARRAYS = ("q", "index", "collided", "invalid", "candidates", "valid", "endpoint",
-                   "start", "free_start", "lengths", "templates", "observation", "tokens")
+                   "start", "free_start", "lengths", "templates", "observation", "tokens",
+                   "inside", "limits", "branch")
 
     def view(self, row: int, checks: CompiledFilter) -> EpisodeBatch:
         """A batch of one whose arrays are row ``row`` of this batch's: what either does to
@@ -140,6 +149,7 @@ class EpisodeBatch:
             setattr(one, name, getattr(self, name)[row : row + 1])
         one.values, one.flags = self.values[:, row : row + 1], self.flags[:, row : row + 1]
         one.scenes, one._memo = np.zeros(1, dtype=np.int64), self._memo
+        one._configuration, one._revolute = self._configuration, self._revolute
         one._bind()
         return one
 
@@ -154,6 +164,8 @@ class EpisodeBatch:
         self.start[row] = ladder.task.start
         self.free_start[row] = ladder.task.free_start
         self.q[row] = ladder.task.start
+        self.inside[row], self.limits[row] = ladder.inside, ladder.limit
+        self.branch[row] = -1
         self.index[row] = 0
         self.collided[row] = self.invalid[row] = False
 
@@ -183,11 +195,12 @@ class EpisodeBatch:
                      terminated=flags[0], success=success)
 
     def masks(self, rows: np.ndarray) -> np.ndarray:
-        """(len(rows), K) bool: the valid branches of each row's next waypoint; every
+        """(len(rows), K) bool: the valid branches of each row's next waypoint (with
+        process continuity: that do not reconfigure the arm inside a segment); every
         branch once its episode is over (any action then, as the env allows)."""
-        over = self.index[rows] >= self.n_waypoints
-        waypoint = np.minimum(self.index[rows], self.n_waypoints - 1)
-        return self.valid[rows, waypoint] | over[:, None]
+        out = np.empty((len(rows), self.valid.shape[2]), dtype=bool)
+        stepping.masks(self._episodes, np.ascontiguousarray(rows, dtype=np.int64), out)
+        return out
 
 
 #: Rows of ``EpisodeBatch.values``: as ``envs.moves._price`` writes them.

@@ -18,6 +18,7 @@ from ikbranch_gym.envs.models.scene_file import base_pose, load_scene_file
 from ikbranch_gym.envs.models.scenes import CLUTTER_SLOTS, ClutterSlots, draw_clutter
 from ikbranch_gym.envs.moves import MovePricer, TaskMoves
 from ikbranch_gym.envs.observations import ObservationBuilder
+from ikbranch_gym.envs.process import check_limit, segment_index
 from ikbranch_gym.envs.resets import RESET_OPTIONS, begin_episodes
 from ikbranch_gym.envs.seeds import TRAIN_SCENES
 from ikbranch_gym.envs.task_frame import FramedArm, TaskFrame
@@ -85,6 +86,16 @@ class IKBranchEnv(gym.Env):
     ``info`` of ``reset`` and ``step`` carries the same mask as ``info["action_mask"]`` (so
     a vector env batches it with no extra call); an unmasked agent may still pick an
     invalid one, which ends the episode with ``invalid_penalty``.
+
+    **Process continuity** (``max_joint_step``, waypoint-file tasks only): the file's
+    waypoints form process segments (its ``segment`` column or blank lines, or
+    ``task_segments``), inside which no move may change the arm's configuration (its
+    closed-form branch: shoulder, elbow, wrist) or step a revolute joint by more than
+    ``max_joint_step`` rad (``"auto"``: derived from the task, ``envs/process.py``). Such a
+    move is left out of the mask, and picking it anyway is an invalid branch; branches
+    from which their segment cannot be followed are not valid at all, so the mask never
+    empties for that reason; a segment that cannot be followed is a ``ValueError`` at
+    reset naming where it breaks. Moves between segments may reconfigure.
     ``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")`` advances N
     copies of this env together in one process, each the single env seeded s + i bit for
     bit (``envs.vector_env.IKBranchVectorEnv``; its docstring is its manual).
@@ -184,6 +195,8 @@ class IKBranchEnv(gym.Env):
     task_file             None                    ``task="file"``: a waypoint file (CSV/JSON)
     task_start            None                    its start q (None: free first branch)
     task_points_abc       None                    four-point files: a, b, c (mm)
+    task_segments         None                    first waypoints of its process segments
+    max_joint_step        None                    process continuity: step limit (rad), "auto"
     scene_file            None                    ``scene="file"``: an MJCF file of the cell
     scene_options         None                    base_pos/_quat/_rpy, floor, decompose, …
     tool                  None                    a tool (``envs/tools.py``); None: built-in
@@ -194,6 +207,9 @@ class IKBranchEnv(gym.Env):
     ===================== ======================= ===========================================
 
     ## Version history
+    - Same ids, same behaviour (2026-12-04): process continuity for waypoint-file tasks,
+      the new arguments ``max_joint_step`` and ``task_segments`` (off by default); waypoint
+      files may carry a ``segment`` column.
     - The current generation (2026-12-04): Cartesian, Cylindrical, Spherical,
       Anthropomorphic, Cylindrical4 **-v3**, ToolTransfer **-v2**, DualRRPRPP, DualRRRPPP,
       DualPPRPRR **-v2**, RodMechanism **-v3**, KukaKR6, UR5e, IRB4600ToolTransfer,
@@ -274,6 +290,8 @@ class IKBranchEnv(gym.Env):
         task_file: str | None = None,
         task_start: list[float] | None = None,
         task_points_abc: list[float] | None = None,
+        task_segments: list[int] | None = None,
+        max_joint_step: float | str | None = None,
         scene_file: str | None = None,
         scene_options: dict[str, Any] | None = None,
         tool: dict[str, Any] | None = None,
@@ -292,7 +310,14 @@ class IKBranchEnv(gym.Env):
         self.render_mode, self.scene = render_mode, scene
         self.lookahead = _integer(lookahead, "lookahead", 0)
         scene_kwargs = self._place_arm(scene, scene_file, scene_options)
-        self._generator = self._task_generator(task, task_file, task_start, task_points_abc)
+        self._generator = self._task_generator(task, task_file, task_start, task_points_abc,
+                                               task_segments)
+        if max_joint_step is not None:
+            if task != "file":
+                raise ValueError("max_joint_step (process continuity) is for task='file': "
+                                 "its waypoints form the process segments")
+            if max_joint_step != "auto":
+                check_limit(max_joint_step)
         self._generator.check_arm(self._task_arm, scene)
         self.n_waypoints = self._waypoint_count(task, n_waypoints)
         draws_scenes = self._scene_seeds(scene, scene_seed, scene_seeds)
@@ -314,6 +339,7 @@ class IKBranchEnv(gym.Env):
         self.pricer = MovePricer(
             self.arm, checker, cost, collision_penalty=collision_penalty,
             invalid_penalty=invalid_penalty, terminate_on_collision=terminate_on_collision,
+            max_joint_step=max_joint_step,
         )
         self._observations = ObservationBuilder(
             self.arm, self.lookahead, self.pricer.travel_scale, observation
@@ -373,13 +399,15 @@ class IKBranchEnv(gym.Env):
 
     def _task_generator(self, task: str, task_file: str | None,
                         task_start: list[float] | None,
-                        task_points_abc: list[float] | None) -> Any:
+                        task_points_abc: list[float] | None,
+                        task_segments: list[int] | None) -> Any:
         if (task == "file") != (task_file is not None):
             raise ValueError("task='file' and task_file=PATH go together")
         if task_file is not None:
-            return self._file_task(task_file, task_start, task_points_abc)
-        if task_start is not None or task_points_abc is not None:
-            raise ValueError("task_start and task_points_abc are for task='file'")
+            return self._file_task(task_file, task_start, task_points_abc, task_segments)
+        if task_start is not None or task_points_abc is not None or task_segments is not None:
+            raise ValueError("task_start, task_points_abc and task_segments are for "
+                             "task='file'")
         return TASKS[task]
 
     def _waypoint_count(self, task: str, n_waypoints: int | None) -> int:
@@ -406,7 +434,7 @@ class IKBranchEnv(gym.Env):
         return scene == "random_clutter" and scene_seed is None
 
     def _file_task(self, path: str, start: list[float] | None,
-                   abc: list[float] | None) -> FileTask:
+                   abc: list[float] | None, segments: list[int] | None = None) -> FileTask:
         """The task of a waypoint file: poses in the cell frame when a scene file gives one
         (else the arm's base frame), of the tool's TCP when a tool is given (else of the fk
         frame). ``ValueError`` naming every row no branch reaches, and why."""
@@ -421,7 +449,12 @@ class IKBranchEnv(gym.Env):
                 raise ValueError(f"task_start must be {self.arm.dof} finite joint values")
             if not self.arm.within_limits(start_q):
                 raise ValueError(f"task_start {start_q.tolist()} lies outside the joint limits")
-        task = FileTask(waypoints, poses, start_q)
+        if segments is not None and (not isinstance(segments, list | tuple) or not all(
+                isinstance(s, int | np.integer) and not isinstance(s, bool) for s in segments)):
+            raise ValueError(f"task_segments must be a list of waypoint indices, got "
+                             f"{segments!r}")
+        task = FileTask(waypoints, poses, start_q, None if segments is None
+                        else segment_index(len(poses), segments))
         problems = task.unreachable(self._task_arm)
         if problems:
             raise ValueError(f"{len(problems)} of {len(poses)} waypoints cannot be reached "
@@ -546,7 +579,7 @@ class IKBranchEnv(gym.Env):
         if self.task_frame.identity:
             return task
         return Task(start=task.start, poses=self.task_frame.to_fk(task.poses),
-                    free_start=task.free_start)
+                    free_start=task.free_start, segments=task.segments)
 
     def _lay_scene(self, seed: int) -> None:
         """Stand the clutter of scene ``seed`` in the model (the env's and the checker's),
@@ -647,8 +680,10 @@ class IKBranchEnv(gym.Env):
             "rng": None if self._np_random is None else self._np_random.bit_generator.state,
             "task": self.task,
             "solutions": None if ladder is None else (
-                ladder.candidates, ladder.valid, ladder.endpoint_collision),
+                ladder.candidates, ladder.valid, ladder.endpoint_collision,
+                ladder.continuity),
             "q": self.q,
+            "branch": int(self._episode.branch[0]),
             "index": self.index,
             "flags": (self.episode_collided, self.episode_invalid),
             "scene_seed": self.scene_seed,
@@ -665,6 +700,7 @@ class IKBranchEnv(gym.Env):
             self._start(state["task"], TaskMoves(self.pricer, state["task"], *state["solutions"]))
         episode = self._episode
         episode.q[0], episode.index[0] = state["q"], state["index"]
+        episode.branch[0] = state["branch"]
         episode.collided[0], episode.invalid[0] = state["flags"]
         if state["task"] is not None:
             episode.survey(self._row)

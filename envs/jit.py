@@ -26,7 +26,7 @@ _ROOT = Path(__file__).resolve().parent
 
 #: The files and folders (relative to ``envs/``) whose kernels call each other.
 KERNEL_SOURCES = ("models/filter", "models/native.py", "models/scenes.py", "moves.py",
-                  "observations.py", "stepping.py", "random_chain.py")
+                  "observations.py", "process.py", "stepping.py", "random_chain.py")
 
 
 def _sources() -> list[Path]:

@@ -41,6 +41,7 @@ from ikbranch_gym.envs.costs import TransitionCost
 from ikbranch_gym.envs.jit import njit
 from ikbranch_gym.envs.kinematics import Arm
 from ikbranch_gym.envs.models import CollisionChecker
+from ikbranch_gym.envs.process import UNKNOWN, Continuity, continuity, move_blocked
 from ikbranch_gym.envs.tasks import Task
 
 #: Cache bounds (entries), see the module docstring.
@@ -76,8 +77,9 @@ class MovePricer:
     """Prices the moves of one arm in one scene with one cost and penalty setting.
 
     ``checker`` decides collisions; ``cost`` prices travel and time; the penalties and
-    ``terminate_on_collision`` are the env's. Shared by every :class:`TaskMoves` it makes,
-    so caches survive from task to task.
+    ``terminate_on_collision`` are the env's; ``max_joint_step`` (rad, ``"auto"`` or None:
+    off) keeps process continuity (``envs/process.py``) in the ladders it makes. Shared by
+    every :class:`TaskMoves` it makes, so caches survive from task to task.
     """
 
     def __init__(
@@ -89,8 +91,10 @@ class MovePricer:
         collision_penalty: float,
         invalid_penalty: float,
         terminate_on_collision: bool,
+        max_joint_step: float | str | None = None,
     ) -> None:
         self.arm, self.checker, self.cost = arm, checker, cost
+        self.max_joint_step = max_joint_step
         self.collision_penalty = float(collision_penalty)
         self.invalid_penalty = float(invalid_penalty)
         self.terminate_on_collision = bool(terminate_on_collision)
@@ -156,11 +160,21 @@ class MovePricer:
             lambda rows, _: checker.rows_collide(rows), np.zeros(len(valid), dtype=np.int64))
 
     def task(self, task: Task) -> TaskMoves:
-        """The ladder of ``task``: its candidates solved, ready to price moves."""
+        """The ladder of ``task``: its candidates solved, ready to price moves. With process
+        continuity, branches from which their segment cannot be followed are invalid
+        (their rows NaN); ``ValueError`` for a segment no branch sequence follows."""
         candidates, valid, endpoint = self.solve(task.poses)
         if not valid.any(axis=-1).all():
             raise RuntimeError("task generator produced a waypoint without a valid branch")
-        return TaskMoves(self, task, candidates, valid, endpoint)
+        if self.max_joint_step is None:
+            return TaskMoves(self, task, candidates, valid, endpoint)
+        arm = self.arm
+        segments = (np.zeros(task.n_waypoints, dtype=np.int64) if task.segments is None
+                    else task.segments)
+        kept, followable = continuity(candidates, valid, segments, arm.branch_closed_form,
+                                      arm.revolute_mask, self.max_joint_step)
+        candidates = np.where(followable[..., None], candidates, np.nan)
+        return TaskMoves(self, task, candidates, followable, endpoint & followable, kept)
 
     # ------------------------------------------------------------------ collisions
     def configurations_collide(self, q: np.ndarray) -> np.ndarray:
@@ -286,17 +300,19 @@ _FLAGS = ("terminal", "collision", "invalid")
 
 @njit
 def _price(origins: np.ndarray, candidates: np.ndarray, valid: np.ndarray,
-           waypoints: np.ndarray, collision: np.ndarray, free_start: np.ndarray, n: np.ndarray,
+           waypoints: np.ndarray, collision: np.ndarray, blocked: np.ndarray,
+           free_start: np.ndarray, n: np.ndarray,
            weights: np.ndarray, speeds: np.ndarray, travel_weight: float, time_weight: float,
            collision_penalty: float, invalid_penalty: float, terminate: bool,
            max_cost: float, values: np.ndarray, flags: np.ndarray) -> None:
     """Every term of the moves from ``origins[w, r]`` to ``candidates[w, k]``, the
     candidates of waypoint ``waypoints[w]`` of a task of ``n[w]`` waypoints whose start is
     free when ``free_start[w]`` (see :meth:`TaskMoves.terms`): ``values``
-    (len(_VALUES), W, R, K) and ``flags`` (3, W, R, K). Rows w may come from one task or,
-    in a batch of episodes, each from its own. Travel Σ_j w_j|Δq_j| is summed in joint
-    order, time is max_j |Δq_j|/v_j (NaN in, NaN out); the reward is the sum of its terms
-    in ``REWARD_TERMS`` order."""
+    (len(_VALUES), W, R, K) and ``flags`` (3, W, R, K). A ``blocked`` (W, R, K) move (it
+    reconfigures the arm inside a process segment) is priced as an invalid branch. Rows w
+    may come from one task or, in a batch of episodes, each from its own. Travel
+    Σ_j w_j|Δq_j| is summed in joint order, time is max_j |Δq_j|/v_j (NaN in, NaN out); the
+    reward is the sum of its terms in ``REWARD_TERMS`` order."""
     count, rows, k = collision.shape
     dof = origins.shape[2]
     for w in range(count):
@@ -305,7 +321,7 @@ def _price(origins: np.ndarray, candidates: np.ndarray, valid: np.ndarray,
         still = free_start[w] and waypoint == 0
         for r in range(rows):
             for b in range(k):
-                invalid = not valid[w, b]
+                invalid = not valid[w, b] or blocked[w, r, b]
                 travel = duration = 0.0
                 if not still:
                     # An invalid branch stays where it is: no motion (NaN from no origin).
@@ -321,7 +337,7 @@ def _price(origins: np.ndarray, candidates: np.ndarray, valid: np.ndarray,
                             duration = pace
                     if unknown:
                         duration = np.nan
-                hit = collision[w, r, b]
+                hit = collision[w, r, b] and not blocked[w, r, b]  # a move not made
                 crashed = hit and terminate
                 skipped = (length - waypoint if invalid
                            else (length - 1 - waypoint if crashed else 0))
@@ -338,6 +354,23 @@ def _price(origins: np.ndarray, candidates: np.ndarray, valid: np.ndarray,
                 values[7, w, r, b] = reward_unfinished
                 flags[0, w, r, b] = invalid or crashed or waypoint == length - 1
                 flags[1, w, r, b], flags[2, w, r, b] = hit, invalid
+
+
+@njit
+def _block_moves(origins: np.ndarray, candidates: np.ndarray, inside: np.ndarray,
+                 origin_config: np.ndarray, configuration: np.ndarray, limit: float,
+                 revolute: np.ndarray, out: np.ndarray) -> None:
+    """``out[w, r, k]`` |= the move from ``origins[w, r]`` (configuration
+    ``origin_config[r]``) to ``candidates[w, k]`` (``configuration[k]``) reconfigures the
+    arm, where ``inside[w]`` (``envs.process.move_blocked``)."""
+    for w in range(origins.shape[0]):
+        if not inside[w]:
+            continue
+        for r in range(origins.shape[1]):
+            for k in range(candidates.shape[1]):
+                if move_blocked(origins[w, r], origin_config[r], candidates[w, k],
+                                configuration[k], limit, revolute):
+                    out[w, r, k] = True
 
 
 @njit
@@ -409,7 +442,7 @@ LinePaths = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 
 def least_free_travel(here: np.ndarray, there: np.ndarray, branches: np.ndarray,
                       targets: np.ndarray, weights: np.ndarray,
-                      paths_collide: LinePaths) -> np.ndarray:
+                      paths_collide: LinePaths, blocked: np.ndarray | None = None) -> np.ndarray:
     """(L, K) per line l and branch a where ``branches[l, a]``: the least travel from
     ``here[l, a]`` (L, K, dof) to a ``there[l, b]`` with ``targets[l, b]`` along a
     collision-free path, +inf where there is none and where ``branches`` is False.
@@ -418,12 +451,16 @@ def least_free_travel(here: np.ndarray, there: np.ndarray, branches: np.ndarray,
     ``paths_collide`` call per round for every branch of every line still undecided,
     until each finds a free one: usually one or two rounds. Targets are the free branches
     of the next waypoint (valid, their configuration collision-free: a path ends in its
-    target)."""
+    target). ``blocked`` (L, K, K): moves that are no moves (they would reconfigure the
+    arm inside a process segment)."""
     lines_count, k = branches.shape
     out = np.full((lines_count, k), np.inf)
     travel = np.empty((lines_count, k, k))
     pending = np.array(branches, dtype=np.bool_)
     _onward_travel(here, there, pending, targets, weights, travel)
+    if blocked is not None:
+        travel[blocked] = np.inf
+        pending &= np.isfinite(travel).any(axis=-1)
     last = np.full((lines_count, k), -1, dtype=np.int64)
     while pending.any():
         lines, rows = np.nonzero(pending)
@@ -454,15 +491,31 @@ class TaskMoves:
 
     Moves into waypoint 0 start at ``task.start`` (one origin row); moves into waypoint
     i > 0 start at the K candidates of waypoint i − 1 (rows of invalid ones are NaN).
+
+    With process continuity (``continuity``, ``envs/process.py``) a move inside a segment
+    that reconfigures the arm is outside the action mask and priced as an invalid branch
+    (no motion, ``invalid_penalty``, the episode ends). An origin block of K rows is the
+    previous waypoint's candidates (row r: branch r, its configuration known); a single row
+    is any configuration (its configuration unknown: only the step limit applies).
     """
 
     def __init__(self, pricer: MovePricer, task: Task, candidates: np.ndarray,
-                 valid: np.ndarray, endpoint_collision: np.ndarray) -> None:
+                 valid: np.ndarray, endpoint_collision: np.ndarray,
+                 continuity: Continuity | None = None) -> None:
         self.pricer, self.task = pricer, task
         self.candidates, self.valid = candidates, valid
         self.endpoint_collision = endpoint_collision
         self.n_waypoints = task.n_waypoints
         self._waypoints = np.arange(self.n_waypoints)
+        self.continuity = continuity
+        #: Per waypoint: the move into it lies inside a process segment (all False
+        #: without continuity); the step limit (rad; +inf without).
+        self.inside = (np.zeros(self.n_waypoints, dtype=bool) if continuity is None
+                       else continuity.inside)
+        self.limit = np.inf if continuity is None else continuity.limit
+        arm = pricer.arm
+        self.configuration = np.ascontiguousarray(arm.branch_closed_form, dtype=np.int64)
+        self.revolute = arm.revolute_mask
 
     def origins(self, waypoint: int) -> tuple[np.ndarray, np.ndarray]:
         """Where the arm can stand before ``waypoint``: rows (R, dof) and which exist."""
@@ -554,11 +607,33 @@ class TaskMoves:
         values = np.empty((len(_VALUES), *shape))
         flags = np.empty((len(_FLAGS), *shape), dtype=np.bool_)
         pricer = self.pricer
-        _price(origins, self.candidates[flat], self.valid[flat], self._waypoints[flat], collision,
+        waypoints = self._waypoints[flat]
+        blocked = np.zeros(shape, dtype=np.bool_)
+        if self.continuity is not None:
+            origin_config = (self.configuration if shape[1] == len(self.configuration)
+                             else np.full(shape[1], UNKNOWN, dtype=np.int64))
+            _block_moves(origins, self.candidates[flat], self.inside[waypoints], origin_config,
+                         self.configuration, self.limit, self.revolute, blocked)
+        _price(origins, self.candidates[flat], self.valid[flat], waypoints, collision, blocked,
                np.full(count, self.task.free_start), np.full(count, self.n_waypoints),
                *pricer.price_arguments, values, flags)
         out = (*lead, *shape[1:])
         return values.reshape(len(_VALUES), *out), flags.reshape(len(_FLAGS), *out)
+
+    def blocked(self, origins: np.ndarray, waypoint: int) -> np.ndarray:
+        """(R, K) bool: the move from each origin row (R, dof; see the class docstring)
+        to each branch of ``waypoint`` reconfigures the arm inside a process segment (all
+        False without continuity)."""
+        waypoint = int(self._check_waypoint(waypoint))
+        origins = np.ascontiguousarray(origins, dtype=np.float64)
+        out = np.zeros((1, len(origins), self.valid.shape[1]), dtype=np.bool_)
+        if self.continuity is not None:
+            origin_config = (self.configuration if len(origins) == len(self.configuration)
+                             else np.full(len(origins), UNKNOWN, dtype=np.int64))
+            _block_moves(origins[None], self.candidates[waypoint][None],
+                         self.inside[waypoint : waypoint + 1], origin_config,
+                         self.configuration, self.limit, self.revolute, out)
+        return out[0]
 
     def edges(self, waypoint: int) -> tuple[np.ndarray, np.ndarray]:
         """``reward`` (R, K) and ``terminal`` (R, K) of every move into ``waypoint`` from
@@ -595,10 +670,12 @@ class TaskMoves:
         if waypoint + 1 >= self.n_waypoints:
             return np.full(self.valid.shape[1], np.inf)
         targets = self.valid[waypoint + 1] & ~self.endpoint_collision[waypoint + 1]
+        blocked = (self.blocked(self.candidates[waypoint], waypoint + 1)[None]
+                   if self.continuity is not None else None)
         return least_free_travel(
             self.candidates[waypoint][None], self.candidates[waypoint + 1][None],
             (branches & self.valid[waypoint])[None], targets[None], self.pricer.cost.weights,
-            lambda lines, starts, ends: self.pricer.paths_collide(starts, ends))[0]
+            lambda lines, starts, ends: self.pricer.paths_collide(starts, ends), blocked)[0]
 
     def travel_from(self, q: np.ndarray, waypoint: int) -> np.ndarray:
         """(K,) travel from configuration ``q`` to each branch of ``waypoint`` (NaN for

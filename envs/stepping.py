@@ -31,6 +31,7 @@ from numba.experimental import structref
 from ikbranch_gym.envs.jit import njit
 from ikbranch_gym.envs.models.filter.kernels import bound_paths, path_steps
 from ikbranch_gym.envs.moves import _next_targets, _onward_travel, _price, _take_or_try_next
+from ikbranch_gym.envs.process import UNKNOWN, move_blocked
 
 #: The flags the filter's kernels take, as run-time booleans: every caller then shares one
 #: compiled version of them (a literal ``False`` would be typed, and compiled, apart).
@@ -47,7 +48,8 @@ Q0, Q1, TRAVEL0, TRAVEL1, PATH0, PATH1, ONWARD0, ONWARD1 = range(8)
 FIELDS = ("q", "index", "collided", "invalid", "candidates", "valid", "endpoint",
           "free_start", "lengths", "templates", "values", "flags", "observation", "weights",
           "speeds", "numbers", "layout", "centre", "half_range", "lever", "scenes", "tokens",
-          "memo_keys", "memo_tokens", "memo_verdicts", "memo_count")
+          "memo_keys", "memo_tokens", "memo_verdicts", "memo_count", "inside", "limits",
+          "configuration", "revolute", "branch")
 
 
 @structref.register
@@ -71,14 +73,14 @@ structref.define_proxy(Episodes, _EpisodesType, list(FIELDS))
 def make_episodes(q, index, collided, invalid, candidates, valid, endpoint, free_start,
                   lengths, templates, values, flags, observation, weights, speeds, numbers,
                   layout, centre, half_range, lever, scenes, tokens, memo_keys, memo_tokens,
-                  memo_verdicts, memo_count):
+                  memo_verdicts, memo_count, inside, limits, configuration, revolute, branch):
     """An :class:`Episodes` of these arrays (``FIELDS`` order), made in compiled code:
     numba caches this on disk, where the proxy's own constructor is compiled again in
     every process."""
     return Episodes(q, index, collided, invalid, candidates, valid, endpoint, free_start,
                     lengths, templates, values, flags, observation, weights, speeds, numbers,
                     layout, centre, half_range, lever, scenes, tokens, memo_keys, memo_tokens,
-                    memo_verdicts, memo_count)
+                    memo_verdicts, memo_count, inside, limits, configuration, revolute, branch)
 
 
 def memo_arrays(dof: int) -> tuple[np.ndarray, ...]:
@@ -167,6 +169,38 @@ def _paths_collide(ep, bound, rows, starts, ends):
     return out
 
 
+# ------------------------------------------------------------------ process continuity
+@njit(inline="always")
+def _blocked(ep, r, w, b):
+    """Row ``r``'s move into branch ``b`` of its next waypoint ``w`` reconfigures the arm
+    inside a process segment (``envs.process``; never without continuity)."""
+    if not ep.inside[r, w]:
+        return False
+    last = ep.branch[r]
+    config = UNKNOWN if last < 0 else ep.configuration[last]
+    return move_blocked(ep.q[r], config, ep.candidates[r, w, b], ep.configuration[b],
+                        ep.limits[r], ep.revolute)
+
+
+@njit(inline="always")
+def _allowed(ep, r, w, b):
+    """Branch ``b`` of row ``r``'s next waypoint ``w`` is in its action mask."""
+    return ep.valid[r, w, b] and not _blocked(ep, r, w, b)
+
+
+@njit
+def masks(ep, rows, out):
+    """``out[i]`` (K): the action mask of row ``rows[i]`` — the valid branches of its next
+    waypoint that do not reconfigure the arm inside a process segment; every branch once
+    its episode is over (any action then)."""
+    k = ep.valid.shape[2]
+    for i in range(len(rows)):
+        r = rows[i]
+        w = ep.index[r]
+        for b in range(k):
+            out[i, b] = True if w >= ep.lengths[r] else _allowed(ep, r, w, b)
+
+
 # ---------------------------------------------------------------------------- survey
 @njit
 def survey(ep, bound, rows):
@@ -202,7 +236,7 @@ def _slot_paths(ep, bound, live):
         w = ep.index[r]
         still = ep.free_start[r] and w == 0
         for b in range(k):
-            if not ep.valid[r, w, b]:
+            if not _allowed(ep, r, w, b):
                 continue
             if still:
                 collision[line, b] = ep.endpoint[r, 0, b]
@@ -234,6 +268,7 @@ def _price_rows(ep, live, collision):
     free_start = np.empty(count, dtype=np.bool_)
     lengths = np.empty(count, dtype=np.int64)
     verdicts = np.empty((count, 1, k), dtype=np.bool_)
+    blocked = np.zeros((count, 1, k), dtype=np.bool_)
     for line in range(count):
         r = live[line]
         w = ep.index[r]
@@ -242,10 +277,13 @@ def _price_rows(ep, live, collision):
         valid[line] = ep.valid[r, w]
         waypoints[line], free_start[line], lengths[line] = w, ep.free_start[r], ep.lengths[r]
         verdicts[line, 0] = collision[line]
+        for b in range(k):
+            blocked[line, 0, b] = _blocked(ep, r, w, b)
     values = np.empty((ep.values.shape[0], count, 1, k))
     flags = np.empty((3, count, 1, k), dtype=np.bool_)
     numbers = ep.numbers
-    _price(origins, candidates, valid, waypoints, verdicts, free_start, lengths, ep.weights,
+    _price(origins, candidates, valid, waypoints, verdicts, blocked, free_start, lengths,
+           ep.weights,
            ep.speeds, numbers[TRAVEL_WEIGHT], numbers[TIME_WEIGHT], numbers[COLLISION_PENALTY],
            numbers[INVALID_PENALTY], numbers[TERMINATE] != 0.0, numbers[MAX_COST], values,
            flags)
@@ -266,6 +304,7 @@ def _onward(ep, bound, live, collision, onward):
         return
     travel = np.empty((count, k, k))
     _onward_travel(here, there, pending, targets, ep.weights, travel)
+    _block_onward(ep, rows, here, there, travel, pending)
     last = np.full((count, k), -1, dtype=np.int64)
     out = np.full((count, k), np.inf)
     while True:
@@ -297,6 +336,30 @@ def _onward(ep, bound, live, collision, onward):
 
 
 @njit
+def _block_onward(ep, rows, here, there, travel, pending):
+    """Onward moves (branch a of the next waypoint → branch b of the one after) that would
+    reconfigure the arm inside a process segment are no moves (+inf travel); a branch left
+    with none onward asks no more."""
+    k = travel.shape[1]
+    for m in range(len(rows)):
+        r = rows[m]
+        w = ep.index[r] + 1
+        if not ep.inside[r, w]:
+            continue
+        for a in range(k):
+            if not pending[m, a]:
+                continue
+            left = False
+            for b in range(k):
+                if travel[m, a, b] < np.inf and move_blocked(
+                        here[m, a], ep.configuration[a], there[m, b], ep.configuration[b],
+                        ep.limits[r], ep.revolute):
+                    travel[m, a, b] = np.inf
+                left = left or travel[m, a, b] < np.inf
+            pending[m, a] = left
+
+
+@njit
 def _onward_lines(ep, live, collision):
     """The live rows with a waypoint after the next (their lines ``inner``, rows), their
     next and following waypoints' candidates (``here``, ``there``), the branches asking
@@ -320,7 +383,7 @@ def _onward_lines(ep, live, collision):
         rows[m] = r
         here[m], there[m] = ep.candidates[r, w], ep.candidates[r, w + 1]
         for b in range(k):
-            pending[m, b] = ep.valid[r, w, b] and not collision[line, b]
+            pending[m, b] = _allowed(ep, r, w, b) and not collision[line, b]
             targets[m, b] = ep.valid[r, w + 1, b] and not ep.endpoint[r, w + 1, b]
     return inner, rows, here, there, pending, targets
 
@@ -359,7 +422,7 @@ def _observe(ep, rows, live, collision, onward):
         w = ep.index[r]
         for b in range(ep.valid.shape[2]):
             travel = ep.values[1, r, 0, b] / scale
-            obs[r, layout[TRAVEL0] + b] = min(travel, 1.0) if ep.valid[r, w, b] else 1.0
+            obs[r, layout[TRAVEL0] + b] = min(travel, 1.0) if _allowed(ep, r, w, b) else 1.0
             obs[r, layout[PATH0] + b] = 1.0 if collision[line, b] else 0.0
             if layout[ONWARD0] >= 0:
                 obs[r, layout[ONWARD0] + b] = min(onward[line, b] / scale, 1.0)
@@ -382,6 +445,7 @@ def advance(ep, rows, actions, values, flags, success):
         terminated, hit, invalid = flags[0, i], flags[1, i], flags[2, i]
         if not invalid:
             ep.q[r] = ep.candidates[r, w, a]
+            ep.branch[r] = a
         ep.index[r] = ep.lengths[r] if terminated else w + 1
         ep.collided[r] = ep.collided[r] or hit
         ep.invalid[r] = ep.invalid[r] or invalid

@@ -14,6 +14,12 @@ values in rad/m and in deg/mm, travel, time, collision flag, cumulative travel),
 table of every planner beside the optimum is printed, ``--json`` holds everything and
 ``--gif`` animates the plan. ``docs/plan.md`` describes the columns, frames and units.
 
+Process continuity: the waypoints form process segments (the file's ``segment`` column or
+blank lines, or ``--segments``; by default the whole file is one segment), inside which no
+move may change the arm's configuration or step a joint by more than ``--max-joint-step``
+(degrees; default ``auto``, derived from the job; ``off`` allows anything). Every planner
+keeps that; the moves between segments may reconfigure and are flagged.
+
 Poses are of the arm's ``fk`` frame, or of the tool's TCP with ``--tool``; in the arm's
 base frame, or in the cell frame with ``--scene`` (its ``arm_base`` site or
 ``--scene-options`` place the arm). ``--start free`` (default): the arm is taken to stand
@@ -50,6 +56,7 @@ import numpy as np
 from ikbranch_gym.agents import BASELINES
 from ikbranch_gym.agents.evaluation import ORACLE, parse_spec
 from ikbranch_gym.envs.files import write_all_atomically
+from ikbranch_gym.envs.process import MAX_LIMIT, largest_steps, segment_index
 
 if TYPE_CHECKING:
     from ikbranch_gym.envs.ik_branch_env import IKBranchEnv
@@ -62,13 +69,14 @@ PLANNERS = tuple(BASELINES)
 #: Env arguments ``--env-kwargs`` may not set: they have options of their own (or are
 #: fixed by the command).
 RESERVED_ENV_KWARGS = ("arm", "arm_params", "scene", "scene_file", "scene_options", "task",
-                       "task_file", "task_start", "task_points_abc", "tool",
-                       "collision_resolution", "n_waypoints", "render_mode", "width", "height")
+                       "task_file", "task_start", "task_points_abc", "task_segments",
+                       "max_joint_step", "tool", "collision_resolution", "n_waypoints",
+                       "render_mode", "width", "height")
 #: Packages whose versions the JSON records.
 VERSIONED = ("ikbranch-gym", "numpy", "mujoco", "gymnasium", "coacd", "numba")
 #: The seed of ``reset`` and of ``random`` (a file task draws nothing).
 SEED = 0
-FORMAT = "ikbranch-plan/1"
+FORMAT = "ikbranch-plan/2"
 
 
 class PlanInputError(ValueError):
@@ -93,6 +101,10 @@ class PlanRequest:
     planners: tuple[str, ...] = (ORACLE,)
     resolution: float = 0.01
     env_kwargs: dict[str, Any] = field(default_factory=dict)
+    #: Process continuity: the step limit (rad), "auto" (derived) or None (off), and the
+    #: first waypoints of the segments (None: the file's own).
+    max_joint_step: float | str | None = "auto"
+    segments: tuple[int, ...] | None = None
 
     def make_kwargs(self) -> dict[str, Any]:
         """The :class:`~envs.ik_branch_env.IKBranchEnv` arguments (JSON-able)."""
@@ -105,6 +117,8 @@ class PlanRequest:
             "scene_file": None if self.scene is None else str(self.scene),
             "scene_options": self.scene_options, "tool": self.tool,
             "collision_resolution": self.resolution,
+            "task_segments": None if self.segments is None else list(self.segments),
+            "max_joint_step": self.max_joint_step,
         }
         return {**kwargs, **self.env_kwargs}
 
@@ -232,6 +246,21 @@ def _contacts(base: Any, before: np.ndarray, waypoint: int) -> dict[str, Any]:
     return {"contacts": result.pairs, "contact_fraction": result.first_fraction}
 
 
+@dataclass(frozen=True)
+class ProcessMove:
+    """A plan row's process view: its waypoint's ``segment``, the ``configuration`` it
+    stands in (the closed-form branch label, turns aside), the move's largest revolute
+    joint step (rad; 0 for a free start's first row), whether it is an ``air_move`` (into
+    the first waypoint or a new segment) and whether it reconfigures the arm (a new
+    configuration, or a step beyond the plan's limit)."""
+
+    segment: int
+    configuration: str
+    max_step: float
+    air_move: bool
+    reconfiguration: bool
+
+
 @dataclass
 class Plan:
     """Every planner's run on the task, the oracle's first; ``chosen`` the first
@@ -248,12 +277,41 @@ class Plan:
     start: np.ndarray  # where the first move starts (free start: unused)
     free_start: bool
     model: Any  # the MuJoCo model (for the animation)
+    segments: np.ndarray  # (N,) each waypoint's process segment
+    #: The step limit inside segments (rad): given or derived; with continuity off, half a
+    #: revolution (``MAX_LIMIT``: only flips and turn changes are flagged). ``continuity``:
+    #: the ladder's ``envs.process.Continuity`` (None: off).
+    limit: float
+    continuity: Any = None
     scene: Any = None  # the SceneFile, if any
     tool: Any = None  # the Tool, if any
 
     @property
     def optimum(self) -> PlanRun:
         return self.runs[ORACLE]
+
+    def moves(self, run: PlanRun | None = None) -> list[ProcessMove]:
+        """The process view of each row of ``run`` (default the chosen planner's)."""
+        run = self.chosen_run if run is None else run
+        arm = self.arm
+        closed, labels = arm.branch_closed_form, arm.closed_form_labels
+        out: list[ProcessMove] = []
+        previous: Step | None = None
+        for step in run.reached:
+            air = step.waypoint == 0 or bool(
+                self.segments[step.waypoint] != self.segments[step.waypoint - 1])
+            if previous is None and self.free_start:  # the arm stands there already
+                largest, changed = 0.0, False
+            else:
+                before = self.start if previous is None else previous.q
+                largest = float(largest_steps(before, step.q, arm.revolute_mask))
+                changed = largest > self.limit or (
+                    previous is not None and closed[previous.branch] != closed[step.branch])
+            out.append(ProcessMove(int(self.segments[step.waypoint]),
+                                   labels[closed[step.branch]], largest, bool(air),
+                                   bool(changed)))
+            previous = step
+        return out
 
     @property
     def chosen_run(self) -> PlanRun:
@@ -302,12 +360,16 @@ def plan(request: PlanRequest) -> Plan:
     a, b, c = request.points_abc or (None, None, None)
     waypoints = read_waypoints(request.waypoints, a=a, b=b, c=c)
     task = base.task
+    kept = base.ladder.continuity
+    segments = (waypoints.segments if request.segments is None
+                else segment_index(len(waypoints), request.segments))
     return Plan(
         request=request, runs=runs, chosen=request.planners[0], arm=base.arm,
         names=waypoints.names,
         sources=tuple(waypoints.where(i) for i in range(len(waypoints))),
         file_poses=np.array(waypoints.poses), targets=np.array(task.poses),
         start=np.array(task.start), free_start=bool(task.free_start), model=base.model,
+        segments=segments, limit=MAX_LIMIT if kept is None else kept.limit, continuity=kept,
         scene=base.scene_file, tool=base.tool,
     )
 
@@ -325,10 +387,10 @@ def _display(values: np.ndarray, kinds: Sequence[str]) -> list[float]:
 
 def csv_columns(arm: Arm) -> list[str]:
     names, kinds = arm.joint_names, arm.joint_types
-    return (["waypoint", "name", "branch", "label", *names,
+    return (["waypoint", "name", "segment", "branch", "label", "configuration", *names,
              *(f"{n}_{_unit_suffix(k)}" for n, k in zip(names, kinds, strict=True)),
-             "travel_rad", "travel_deg", "time_s", "collision", "cumulative_travel_rad",
-             "cumulative_travel_deg"])
+             "travel_rad", "travel_deg", "time_s", "collision", "max_step_deg", "air_move",
+             "reconfiguration", "cumulative_travel_rad", "cumulative_travel_deg"])
 
 
 def plan_csv(plan: Plan, run: PlanRun | None = None) -> str:
@@ -340,20 +402,21 @@ def plan_csv(plan: Plan, run: PlanRun | None = None) -> str:
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(csv_columns(arm))
     cumulative = 0.0
-    for step in run.reached:
+    for step, move in zip(run.reached, plan.moves(run), strict=True):
         cumulative += step.travel
         writer.writerow([
-            step.waypoint, plan.names[step.waypoint], step.branch, step.label,
-            *(repr(float(v)) for v in step.q),
+            step.waypoint, plan.names[step.waypoint], move.segment, step.branch, step.label,
+            move.configuration, *(repr(float(v)) for v in step.q),
             *(repr(v) for v in _display(step.q, arm.joint_types)),
             repr(step.travel), repr(math.degrees(step.travel)), repr(step.time),
-            int(step.collision), repr(cumulative), repr(math.degrees(cumulative)),
+            int(step.collision), repr(math.degrees(move.max_step)), int(move.air_move),
+            int(move.reconfiguration), repr(cumulative), repr(math.degrees(cumulative)),
         ])
     return buffer.getvalue()
 
 
-SUMMARY = ("planner", "success", "return", "travel deg", "time s", "collisions", "gap",
-           "ms/waypoint")
+SUMMARY = ("planner", "success", "return", "travel deg", "time s", "collisions",
+           "reconfigurations", "gap", "ms/waypoint")
 
 
 def summary(plan: Plan) -> dict[str, dict[str, Any]]:
@@ -364,7 +427,9 @@ def summary(plan: Plan) -> dict[str, dict[str, Any]]:
         out[key] = {
             "spec": run.spec, "return": run.reward, "travel": run.travel,
             "travel_deg": math.degrees(run.travel), "time": run.time,
-            "collisions": run.collisions, "success": run.success, "gap": plan.gap(run),
+            "collisions": run.collisions,
+            "reconfigurations": sum(move.reconfiguration for move in plan.moves(run)),
+            "success": run.success, "gap": plan.gap(run),
             "decision_ms": 1e3 * run.decision_seconds / max(len(run.steps), 1),
             "waypoints_reached": len(run.reached), "n_waypoints": run.n_waypoints,
             "problem": run.problem(),
@@ -381,7 +446,7 @@ def summary_table(plan: Plan) -> str:
         gap = "n/a" if m["gap"] is None else f"{m['gap']:.2%}"
         rows.append([key + mark, "yes" if m["success"] else "NO", f"{m['return']:.6f}",
                      f"{m['travel_deg']:.2f}", f"{m['time']:.3f}", str(m["collisions"]),
-                     gap, f"{m['decision_ms']:.3f}"])
+                     str(m["reconfigurations"]), gap, f"{m['decision_ms']:.3f}"])
     widths = [max(len(row[c]) for row in rows) for c in range(len(SUMMARY))]
     lines = ["  ".join(cell.rjust(w) if c else cell.ljust(w)
                        for c, (cell, w) in enumerate(zip(row, widths, strict=True)))
@@ -432,6 +497,7 @@ def plan_json(plan: Plan, argv: Sequence[str] | None = None) -> dict[str, Any]:
     planners = {}
     for key, run in plan.runs.items():
         steps = []
+        moves = iter(plan.moves(run))
         for step in run.steps:
             entry = {
                 "waypoint": step.waypoint, "name": plan.names[step.waypoint],
@@ -442,9 +508,13 @@ def plan_json(plan: Plan, argv: Sequence[str] | None = None) -> dict[str, Any]:
                 "contacts": [list(pair) for pair in step.contacts],
                 "contact_fraction": step.contact_fraction,
             }
+            entry["segment"] = int(plan.segments[step.waypoint])
             if not step.invalid:
                 fk = arm.fk(step.q)
                 entry["fk_residual"] = float(np.abs(fk - plan.targets[step.waypoint]).max())
+                move = next(moves)
+                entry.update(configuration=move.configuration, max_step=move.max_step,
+                             air_move=move.air_move, reconfiguration=move.reconfiguration)
             steps.append(entry)
         planners[key] = {"spec": run.spec, "steps": steps}
     return {
@@ -465,6 +535,7 @@ def plan_json(plan: Plan, argv: Sequence[str] | None = None) -> dict[str, Any]:
                 "tcp": _matrix(plan.tool.tcp) if plan.tool is not None else None},
             "start": {"free": plan.free_start,
                       "q": None if plan.free_start else [float(v) for v in plan.start]},
+            "process": _process_record(plan),
             "planners": list(request.planners),
             "env_kwargs": request.make_kwargs(),
             "versions": versions(("torch", "stable-baselines3", "sb3-contrib") if models
@@ -475,6 +546,22 @@ def plan_json(plan: Plan, argv: Sequence[str] | None = None) -> dict[str, Any]:
         "waypoints": waypoints,
         "summary": summary(plan),
         "planners": planners,
+    }
+
+
+def _process_record(plan: Plan) -> dict[str, Any]:
+    """The JSON's ``inputs.process``: the segments and the step limit, how it came about."""
+    starts = [0, *(int(w) for w in np.flatnonzero(np.diff(plan.segments)) + 1)]
+    kept = plan.continuity
+    requested = plan.request.max_joint_step
+    return {
+        "segment_starts": starts,
+        "continuity": kept is not None,
+        "max_joint_step_requested": (None if requested is None else requested
+                                     if isinstance(requested, str) else float(requested)),
+        "max_joint_step": plan.limit, "max_joint_step_deg": math.degrees(plan.limit),
+        "derived": None if kept is None else kept.derived,
+        "segment_needs": None if kept is None else [float(v) for v in kept.needed],
     }
 
 
@@ -693,6 +780,38 @@ def parse_start(text: str, degrees: bool, arm: Arm) -> np.ndarray | None:
     return q
 
 
+def parse_max_joint_step(text: str) -> float | str | None:
+    """``--max-joint-step``: degrees (0 < value ≤ 179), ``auto`` or ``off``; radians out."""
+    word = text.strip().lower()
+    if word in ("auto", "off"):
+        return None if word == "off" else "auto"
+    try:
+        degrees = float(word)
+    except ValueError:
+        raise PlanInputError(f"--max-joint-step {text!r}: give degrees, 'auto' (derived from "
+                             "the job) or 'off'") from None
+    if not (math.isfinite(degrees) and 0.0 < degrees <= math.degrees(MAX_LIMIT)):
+        raise PlanInputError(f"--max-joint-step {text!r}: must lie in (0, "
+                             f"{math.degrees(MAX_LIMIT):g}] degrees (a step of half a "
+                             "revolution or more is a turn change)")
+    return math.radians(degrees)
+
+
+def parse_segments(text: str | None) -> tuple[int, ...] | None:
+    """``--segments``: the 0-based waypoints where segments begin, comma-separated."""
+    if text is None:
+        return None
+    starts = []
+    for part in text.split(","):
+        try:
+            starts.append(int(part.strip()))
+        except ValueError:
+            raise PlanInputError(f"--segments {text!r}: {part.strip()!r} is not a waypoint "
+                                 "index (give the 0-based waypoints where segments begin, "
+                                 "e.g. 0,12,40)") from None
+    return tuple(starts)
+
+
 def _scene_options(options: dict[str, Any] | None, scene: Path | None) -> dict | None:
     if options is None:
         return None
@@ -781,6 +900,8 @@ def request_from_args(args: argparse.Namespace) -> PlanRequest:
     if args.points_abc is not None and any(not math.isfinite(v) for v in args.points_abc):
         raise PlanInputError(f"--points-abc must be finite lengths in mm, got {args.points_abc}")
     return PlanRequest(
+        max_joint_step=parse_max_joint_step(args.max_joint_step),
+        segments=parse_segments(args.segments),
         arm=args.arm, waypoints=waypoints, arm_params=arm_params,
         points_abc=None if args.points_abc is None else tuple(args.points_abc),
         scene=scene, scene_options=scene_options, tool=tool, tool_file=tool_file,
@@ -844,6 +965,13 @@ def parser() -> argparse.ArgumentParser:
                    help=f"repeatable: {', '.join(PLANNERS)} (receding_dp:H, fixed:BRANCH, "
                         "random:SEED) or an SB3 model zip; the first is written to --out "
                         "(default dp_oracle); the DP oracle always runs")
+    p.add_argument("--segments", metavar="W1,W2,…",
+                   help="the 0-based waypoints where process segments begin (default: the "
+                        "file's segment column or blank lines; without them one segment)")
+    p.add_argument("--max-joint-step", default="auto", metavar="DEG|auto|off",
+                   help="inside a segment no move may change the configuration or step a "
+                        "joint by more than this (degrees; auto: twice the least step the "
+                        "hardest segment needs, 10–179; off: no continuity)")
     p.add_argument("--resolution", type=float, default=0.01, metavar="M",
                    help="collision-check clearance and step along paths (m, default 0.01)")
     p.add_argument("--env-kwargs", metavar="JSON",
@@ -908,7 +1036,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except PlanInputError as exc:
         return _fail(str(exc))
     except ValueError as exc:  # the env's and the planners' checks of the inputs
-        return _fail(str(exc))
+        message = str(exc)
+        if message.startswith("process segment"):
+            message += (" (segments: --segments, a blank line or a segment column in the "
+                        "file; --max-joint-step DEG raises the limit, off plans without "
+                        "process continuity)")
+        return _fail(message)
     except OSError as exc:
         return _fail(f"cannot write the outputs: {exc}")
     except Exception:  # a bug: say so, with the traceback to report

@@ -34,12 +34,15 @@ class Task:
     ``start`` (dof,): the configuration before the first step. ``poses`` (N, 4, 4): the
     waypoints in order. ``free_start``: the arm already stands *at* waypoint 0 and its
     first step only chooses that waypoint's branch, at no motion cost (the paper's transfer
-    starts in the rack); otherwise it moves there from ``start``.
+    starts in the rack); otherwise it moves there from ``start``. ``segments`` (N,) int:
+    the process segment of each waypoint (``envs/process.py``; None: one segment), used
+    when the env keeps process continuity.
     """
 
     start: np.ndarray
     poses: np.ndarray
     free_start: bool = False
+    segments: np.ndarray | None = None
 
     @property
     def n_waypoints(self) -> int:

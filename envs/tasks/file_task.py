@@ -14,24 +14,32 @@ class FileTask:
     """The waypoints of ``waypoints`` (``poses`` (N, 4, 4), in the task frame: the cell,
     of the TCP; ``envs/task_frame.py``) every episode, from ``start`` (dof,), or, with
     ``start`` None, from a free choice of the first waypoint's branch at no cost (as the
-    paper's transfer starts in the rack)."""
+    paper's transfer starts in the rack). ``segments`` (N,) int: each waypoint's process
+    segment (default: the file's own, ``WaypointFile.segments``)."""
 
     fixed_waypoints = True
     finite_poses = True
 
     def __init__(self, waypoints: WaypointFile, poses: np.ndarray,
-                 start: np.ndarray | None) -> None:
+                 start: np.ndarray | None, segments: np.ndarray | None = None) -> None:
         self.waypoints = waypoints
         self.poses = np.array(poses, dtype=np.float64)
         self.poses.flags.writeable = False
         self.start = None if start is None else np.array(start, dtype=np.float64)
         self.default_waypoints = len(self.poses)
+        self.segments = np.array(waypoints.segments if segments is None else segments,
+                                 dtype=np.int64)
+        if self.segments.shape != (len(self.poses),):
+            raise ValueError(f"{len(self.segments)} segment indices for {len(self.poses)} "
+                             "waypoints")
+        self.segments.flags.writeable = False
 
     def __call__(self, arm: Arm, rng: np.random.Generator, n_waypoints: int,
                  is_free: FreePredicate, is_path_free: PathPredicate) -> Task:
         if self.start is None:
-            return Task(start=arm.home.copy(), poses=self.poses, free_start=True)
-        return Task(start=self.start.copy(), poses=self.poses)
+            return Task(start=arm.home.copy(), poses=self.poses, free_start=True,
+                        segments=self.segments)
+        return Task(start=self.start.copy(), poses=self.poses, segments=self.segments)
 
     @staticmethod
     def check_arm(arm: Arm, scene: str) -> None:

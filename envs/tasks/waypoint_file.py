@@ -15,7 +15,10 @@ cell is ignored, names are case-sensitive):
                 ``a,b,c`` (mm) as columns or as the ``a=``/``b=``/``c=`` options (each one
                 way, not both).
 
-An optional ``name`` column labels the rows. Any other column is an error unless the
+An optional ``name`` column labels the rows. Process segments (``envs/process.py``): a
+new segment begins where the optional ``segment`` column's value changes (a segment's
+rows must be consecutive; any text or number names it) and, in CSV, after a blank line
+between rows; without either the whole file is one segment. Any other column is an error unless the
 caller lists it in ``extra_columns`` (its raw values, CSV text or JSON values, are then
 returned in ``WaypointFile.extras``): a misspelt column must not be dropped silently.
 
@@ -62,6 +65,7 @@ MATRIX = tuple(f"r{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3))
 POINTS = tuple(f"p{k}{axis}" for k in (1, 2, 3, 4) for axis in "xyz")
 ABC = ("a", "b", "c")
 NAME = "name"
+SEGMENT = "segment"
 
 #: The columns of each format (besides ``name``; ``a,b,c`` may join ``points``).
 FORMATS: dict[str, tuple[str, ...]] = {
@@ -112,7 +116,8 @@ class WaypointFile:
     one. ``lines``: where each row came from (CSV physical line; JSON list index), for
     reporting per-row problems found later (e.g. a pose no branch reaches) with
     :meth:`row_error`. ``extras``: the raw values (CSV text, JSON values) of the allowed
-    ``extra_columns`` present in the file.
+    ``extra_columns`` present in the file. ``segments`` (N,) int64: each row's process
+    segment, 0, 1, … in file order (all 0 without a ``segment`` column or blank lines).
     """
 
     poses: np.ndarray
@@ -121,6 +126,11 @@ class WaypointFile:
     format: str
     lines: tuple[int, ...] = ()
     extras: dict[str, tuple] = field(default_factory=dict)
+    segments: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+
+    def __post_init__(self) -> None:
+        if len(self.segments) != len(self.poses):  # made without segments: one segment
+            object.__setattr__(self, "segments", np.zeros(len(self.poses), dtype=np.int64))
 
     def __len__(self) -> int:
         return len(self.poses)
@@ -181,14 +191,18 @@ def _kind(path: Path) -> str:
     return suffix[1:]
 
 
-def _csv_rows(path: Path, text: str) -> tuple[list[str], list[tuple[int, dict]]]:
-    """Header and (line, {column: text}) per data row; blank lines are skipped."""
+def _csv_rows(path: Path, text: str) -> tuple[list[str], list[tuple[int, dict]], set[int]]:
+    """Header, (line, {column: text}) per data row, and the rows that follow a blank line
+    after an earlier row (they begin a process segment); blank lines are skipped."""
     reader = csv.reader(io.StringIO(text, newline=""), strict=True)
     try:
         header: list[str] | None = None
         rows: list[tuple[int, dict]] = []
+        breaks: set[int] = set()
         for record in reader:
             if not record or all(not cell.strip() for cell in record):
+                if rows:
+                    breaks.add(len(rows))
                 continue
             if header is None:
                 header = [cell.strip() for cell in record]
@@ -203,7 +217,7 @@ def _csv_rows(path: Path, text: str) -> tuple[list[str], list[tuple[int, dict]]]
     except csv.Error as exc:
         raise WaypointFileError(path, f"malformed CSV: {exc}", line=reader.line_num) from None
     assert header is not None  # the text is not blank
-    return header, rows
+    return header, rows, {row for row in breaks if row < len(rows)}
 
 
 def _check_header(path: Path, header: list[str], line: int) -> None:
@@ -218,7 +232,7 @@ def _check_header(path: Path, header: list[str], line: int) -> None:
         )
 
 
-def _json_rows(path: Path, text: str) -> tuple[list[str], list[tuple[int, dict]]]:
+def _json_rows(path: Path, text: str) -> tuple[list[str], list[tuple[int, dict]], set[int]]:
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
@@ -255,7 +269,7 @@ def _json_rows(path: Path, text: str) -> tuple[list[str], list[tuple[int, dict]]
             )
         rows.append((index, entry))
     assert header is not None
-    return header, rows
+    return header, rows, set()
 
 
 def _parse(
@@ -263,6 +277,7 @@ def _parse(
     kind: str,
     header: list[str],
     rows: list[tuple[int, dict]],
+    breaks: set[int],
     options: dict[str, float | None],
     extra_columns: tuple[str, ...],
 ) -> WaypointFile:
@@ -303,7 +318,42 @@ def _parse(
         column: tuple(row[column] for _, row in rows)
         for column in extra_columns if column in header
     }
-    return WaypointFile(poses, names, path, fmt, lines, extras)
+    segments = _segments(path, header, rows, breaks, place)
+    return WaypointFile(poses, names, path, fmt, lines, extras, segments)
+
+
+def _segments(path: Path, header: list[str], rows: list[tuple[int, dict]], breaks: set[int],
+              place: Callable[[int], dict]) -> np.ndarray:
+    """(N,) int64: each row's process segment (the module docstring's rules)."""
+    begins = np.zeros(len(rows), dtype=bool)
+    begins[sorted(breaks)] = True
+    if SEGMENT in header:
+        seen: dict[tuple[str, object], int] = {}
+        previous: object = None
+        for r, (where, row) in enumerate(rows):
+            value = row[SEGMENT]
+            if isinstance(value, str):
+                value = value.strip()
+            if value == "" or value is None or isinstance(value, bool | list | dict):
+                raise WaypointFileError(
+                    path, f"column {SEGMENT}: expected a segment name (text or a number), got "
+                    f"{json.dumps(value) if not isinstance(value, str) else 'an empty value'}",
+                    **place(where))
+            key = ("text", value) if isinstance(value, str) else ("number", value)
+            if r and key != previous:
+                if key in seen:
+                    first = place(seen[key])
+                    began = (f"line {first['line']}" if "line" in first
+                             else f"entry {first['entry']}")
+                    raise WaypointFileError(
+                        path, f"column {SEGMENT}: segment {value!r} appears again after "
+                        f"another segment (it began at {began}); a segment's rows must be "
+                        "consecutive", **place(where))
+                begins[r] = True
+            seen.setdefault(key, where)
+            previous = key
+    begins[0] = False
+    return np.cumsum(begins).astype(np.int64)
 
 
 def _recognise(
@@ -357,7 +407,7 @@ def _check_columns(path: Path, header: list[str], columns: set[str], fmt: str,
             path, f"{fmt} format: missing column{'s' * (len(missing) > 1)} "
             f"{', '.join(missing)}", **header_place,
         )
-    allowed = set(FORMATS[fmt]) | {NAME} | set(extra_columns)
+    allowed = set(FORMATS[fmt]) | {NAME, SEGMENT} | set(extra_columns)
     if fmt == "points":
         allowed |= set(ABC)
     unknown = [column for column in header if column not in allowed]

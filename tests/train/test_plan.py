@@ -55,6 +55,9 @@ MODEL = ("ikbranch plan --arm anthropomorphic --waypoints examples/milling_tool_
          "--scene examples/milling_cell.xml --tool examples/milling_tool.json "
          "--planner models/ToolTransfer-v0/maskable_ppo.zip --planner paper_rule "
          "--env-kwargs '{\"observation\": \"ladder\"}' --out tool_change_ppo.csv")
+DEBURRING = ("ikbranch plan --arm kuka_kr6_r700 --waypoints examples/deburring_passes.csv "
+             "--planner dp_oracle --planner paper_rule --planner receding_dp "
+             "--planner models/KukaKR6-v0/maskable_ppo.zip --out deburr.csv --json deburr.json")
 EXAMPLES_README = (EXAMPLES / "README.md").read_text()
 
 
@@ -65,7 +68,7 @@ def test_the_examples_readme_commands_are_the_ones_tested():
         lines = [line.split("#")[0].rstrip() for line in block.splitlines()]
         text = " ".join(line.rstrip("\\").strip() for line in lines if line.strip())
         commands |= {" ".join(part.split()) for part in text.split("ikbranch ")[1:]}
-    tested = {" ".join(c.split()[1:]) for c in (PAPER, WELDING, MILLING, MODEL)}
+    tested = {" ".join(c.split()[1:]) for c in (PAPER, WELDING, MILLING, MODEL, DEBURRING)}
     assert tested <= commands, tested - commands
 
 
@@ -132,8 +135,9 @@ def test_a_plan_for_an_arm_with_prismatic_joints_gives_millimetres(tmp_path, cap
     generated.reset(seed=4)
     path = write_waypoints(tmp_path / "gantry.csv", generated.task.poses, format="quaternion")
     out, record = tmp_path / "plan.csv", tmp_path / "plan.json"
+    # Random poses of a transfer, not a process: no continuity between them.
     assert main(["--arm", "cartesian", "--waypoints", str(path), "--out", str(out),
-                 "--json", str(record)]) == EXIT_OK
+                 "--json", str(record), "--max-joint-step", "off"]) == EXIT_OK
     header = next(csv.reader(out.open()))
     assert {"s1", "s1_mm", "s2_mm", "s3_mm", "phi1", "phi1_deg"} <= set(header)
     replay(out, record)
@@ -321,7 +325,7 @@ def test_milling_example_equals_the_builtin_cell_and_tool(cell, capsys):
     # cell with its built-in tool.
     file_env = IKBranchEnv(**record["inputs"]["env_kwargs"])
     builtin = IKBranchEnv(arm="anthropomorphic", scene="milling_cell", task="file",
-                          task_file="examples/milling_tool_change.csv")
+                          task_file="examples/milling_tool_change.csv", max_joint_step="auto")
     for env in (file_env, builtin):
         env.reset(seed=0)
     assert np.array_equal(file_env.candidates, builtin.candidates, equal_nan=True)
@@ -408,6 +412,12 @@ BAD_INPUTS = [
     (["--env-kwargs", '{"lookahed": 1}'], "--env-kwargs: unknown arguments ['lookahed']"),
     (["--tool", '{"shape": "mesh", "mesh": 5}'], "--tool: mesh must be the path of an STL/OBJ"),
     (["--resolution", "0"], "--resolution must be a positive length"),
+    (["--max-joint-step", "180"], "--max-joint-step '180': must lie in (0, 179] degrees"),
+    (["--max-joint-step", "0"], "must lie in (0, 179] degrees"),
+    (["--max-joint-step", "smooth"], "give degrees, 'auto' (derived from the job) or 'off'"),
+    (["--segments", "0,x"], "--segments '0,x': 'x' is not a waypoint index"),
+    (["--segments", "1,1"], "segment starts must increase strictly"),
+    (["--segments", "2"], "segment starts must be waypoints in [0, 2)"),
     (["--out", "plan.txt"], "--out plan.txt: the file name must end in .csv"),
     (["--out", "absent/plan.csv"], "folder absent does not exist"),
     (["--out", "paper.csv"], "--out paper.csv would overwrite an input file"),
@@ -529,3 +539,91 @@ def test_a_trained_model_plans_and_a_mismatched_one_is_bad_input(cell, capsys):
     err = capsys.readouterr().err
     assert "trained on observations of shape" in err
     assert not (cell / "other.csv").exists() and not (cell / "other.json").exists()
+
+
+# ---------------------------------------------------------------------- process continuity
+def test_deburring_example_keeps_the_configuration_with_every_planner(cell, capsys):
+    """The README's two passes 2 mm apart: every planner, the published model among them,
+    keeps one configuration and steps within the derived limit; without continuity the
+    model flips the wrist inside the job, and the CSV flags it."""
+    poses = read_waypoints(cell / "examples" / "deburring_passes.csv").poses
+    down = np.diag([1.0, -1.0, -1.0])
+    assert np.array_equal(poses[:, :3, :3], np.broadcast_to(down, (62, 3, 3)))
+    assert np.allclose(poses[:, :3, 3], [(0.45, y / 1000, 0.25) for y in range(-150, 151, 10)]
+                       + [(0.452, y / 1000, 0.25) for y in range(150, -151, -10)], atol=1e-15)
+    shutil.copytree(ROOT / "models" / "KukaKR6-v0", cell / "models" / "KukaKR6-v0")
+    args = args_of(DEBURRING)
+    assert main([*args, "--planner", "models/KukaKR6-v0/ppo.zip",
+                 "--planner", "paper_pair_rule"]) == EXIT_OK
+    record = json.loads((cell / "deburr.json").read_text())
+    process = record["inputs"]["process"]
+    assert process["segment_starts"] == [0] and process["derived"]
+    assert math.degrees(process["segment_needs"][0]) == pytest.approx(1.27, abs=0.005)
+    limit = process["max_joint_step"]
+    assert limit == math.radians(10.0)  # twice the need is below the floor
+    closed = make_arm("kuka_kr6_r700").branch_closed_form
+    optimum = record["summary"]["dp_oracle"]["return"]
+    for planner, summary in record["summary"].items():
+        assert summary["success"] and summary["reconfigurations"] == 0, planner
+        assert summary["return"] == pytest.approx(optimum, rel=1e-12), planner
+        steps = record["planners"][planner]["steps"]
+        assert len({closed[step["branch"]] for step in steps}) == 1  # one configuration
+        q = np.array([step["q"] for step in steps])
+        assert np.abs(np.diff(q, axis=0)).max() <= limit  # every step within the limit
+        assert [step["air_move"] for step in steps] == [True] + [False] * 61
+    assert math.degrees(-optimum) == pytest.approx(190.97, abs=0.005)
+    # Without continuity the learned policy flips the wrist inside the job: flagged.
+    capsys.readouterr()
+    assert main([*args, "--max-joint-step", "off"]) == EXIT_OK
+    summary = json.loads((cell / "deburr.json").read_text())["summary"]
+    model = "models/KukaKR6-v0/maskable_ppo.zip"
+    assert summary[model]["travel_deg"] == pytest.approx(548.50, abs=0.005)
+    assert summary[model]["reconfigurations"] >= 1
+    assert all(summary[p]["reconfigurations"] == 0
+               for p in ("dp_oracle", "paper_rule", "receding_dp"))
+    assert main(["--arm", "kuka_kr6_r700", "--waypoints", "examples/deburring_passes.csv",
+                 "--planner", model, "--max-joint-step", "off", "--out", "flip.csv"]) == EXIT_OK
+    rows = rows_of(cell / "flip.csv")
+    flagged = [int(row["waypoint"]) for row in rows if row["reconfiguration"] == "1"]
+    assert flagged and all(row["air_move"] == "0" for row in rows[1:])
+    for w in flagged:
+        before, after = rows[w - 1], rows[w]
+        assert (after["configuration"] != before["configuration"]
+                or float(after["max_step_deg"]) > 179.0)
+
+
+def _spin(path: Path, turns: int = 30) -> Path:
+    """The KR 6 R700's tool turned 25° about its own axis per waypoint: 725° in all, more
+    than j6's ±350°, so the arm must unwind once (before waypoint 22)."""
+    arm = make_arm("kuka_kr6_r700")
+    base = arm.fk(np.array([0.0, -1.2, 1.6, 0.0, 1.0, 0.0]))
+    poses = []
+    for i in range(turns):
+        c, s = math.cos(math.radians(25.0 * i)), math.sin(math.radians(25.0 * i))
+        poses.append(base @ np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]))
+    return write_waypoints(path, np.array(poses))
+
+
+def test_an_infeasible_segment_is_reported_not_planned(tmp_path, capsys):
+    path = _spin(tmp_path / "spin.csv")
+    out = tmp_path / "plan.csv"
+    args = ["--arm", "kuka_kr6_r700", "--waypoints", str(path), "--out", str(out)]
+    assert main(args) == EXIT_INPUT
+    error = capsys.readouterr().err
+    assert "process segment 0 (waypoints 0–29) cannot be followed" in error
+    assert "breaks between waypoint 21 and waypoint 22" in error and "--segments" in error
+    assert not out.exists()
+    # Split where the unwind must happen, the unwind is the air move between the segments.
+    assert main([*args, "--segments", "0,22"]) == EXIT_OK
+    rows = rows_of(out)
+    assert [row["segment"] for row in rows] == ["0"] * 22 + ["1"] * 8
+    assert [int(row["waypoint"]) for row in rows if row["air_move"] == "1"] == [0, 22]
+    assert [int(row["waypoint"]) for row in rows if row["reconfiguration"] == "1"] == [22]
+    assert float(rows[22]["max_step_deg"]) == pytest.approx(335.0, abs=1e-9)
+    # The same split as a blank line in the file.
+    lines = path.read_text().splitlines()
+    split = tmp_path / "split.csv"
+    split.write_text("\n".join([*lines[:23], "", *lines[23:]]) + "\n")
+    assert main(["--arm", "kuka_kr6_r700", "--waypoints", str(split), "--out",
+                 str(tmp_path / "split_plan.csv")]) == EXIT_OK
+    assert rows_of(tmp_path / "split_plan.csv") == rows

@@ -213,6 +213,26 @@ def test_names_extras_lines_and_blank_lines(tmp_path):
     assert str(error) == f"{path}: line 6: out of reach" and file.where(1) == "line 4"
 
 
+def test_segments_from_blank_lines_and_the_segment_column(tmp_path):
+    """A segment begins after a blank line between rows (CSV) and where the segment
+    column's value changes; blank lines before the first row or after the last do not
+    count; without either the file is one segment."""
+    row = "0,0,0,1,0,0,0"
+    path = tmp_path / "s.csv"
+    path.write_text(f"{QUAT_HEADER}\n\n{row}\n{row}\n\n\n{row}\n{row}\n\n{row}\n\n")
+    np.testing.assert_array_equal(read_waypoints(path).segments, [0, 0, 1, 1, 2])
+    path.write_text(f"{QUAT_HEADER}\n{row}\n{row}\n")
+    np.testing.assert_array_equal(read_waypoints(path).segments, [0, 0])
+    path.write_text(f"{QUAT_HEADER},segment\n{row},pass 1\n{row}, pass 1\n{row},2\n\n"
+                    f"{row},2\n{row},pass 3\n")
+    np.testing.assert_array_equal(read_waypoints(path).segments, [0, 0, 1, 2, 3])
+    entry = {"x": 0, "y": 0, "z": 0, "qw": 1, "qx": 0, "qy": 0, "qz": 0}
+    json_path = tmp_path / "s.json"
+    json_path.write_text(json.dumps([entry | {"segment": value}
+                                     for value in (7, 7, "7", "b", "b")]))
+    np.testing.assert_array_equal(read_waypoints(json_path).segments, [0, 0, 1, 2, 2])
+
+
 def test_json_rows_report_entries(tmp_path):
     path = tmp_path / "n.json"
     path.write_text(json.dumps([{"x": 0, "y": 0, "z": 0, "qw": 1, "qx": 0, "qy": 0, "qz": 0}] * 3))
@@ -441,6 +461,17 @@ BAD_FILES = [
      "keys differ from entry 0 (unexpected name)", 2),
     ("invalid json", "o.json", '[\n{"x": 0,\n "y": }\n]', {}, "invalid JSON", 3),
     ("json huge int", "o.json", json.dumps([_QJ | {"x": 10**400}]), {}, "is too large", 0),
+    ("segment comes back", "s.csv", f"{QUAT_HEADER},segment\n{_Q},A\n{_Q},B\n{_Q},A\n", {},
+     "segment 'A' appears again after another segment (it began at line 2)", 4),
+    ("segment comes back json", "s.json", json.dumps([_QJ | {"segment": 1}, _QJ | {"segment": 2},
+                                                     _QJ | {"segment": 1}]), {},
+     "segment 1 appears again after another segment (it began at entry 0)", 2),
+    ("segment empty", "s.csv", f"{QUAT_HEADER},segment\n{_Q},A\n{_Q}, \n", {},
+     "column segment: expected a segment name (text or a number), got an empty value", 3),
+    ("segment null", "s.json", json.dumps([_QJ | {"segment": None}]), {},
+     "column segment: expected a segment name (text or a number), got null", 0),
+    ("segment list", "s.json", json.dumps([_QJ | {"segment": [1]}]), {},
+     "got [1]", 0),
     ("suffix", "w.txt", _Q, {}, "unknown file type '.txt'", None),
     ("not utf-8", "b.csv", b"x,y,z\n\xff\xfe\x00", {}, "not UTF-8", None),
 ]

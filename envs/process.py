@@ -1,0 +1,229 @@
+"""Process continuity: inside a process segment the arm keeps its configuration.
+
+A job's waypoints fall into **segments** (a weld seam, a deburring pass): consecutive
+waypoints the tool must follow without the arm changing how it holds it. Between segments
+the arm moves through the air and may reconfigure. A move into waypoint w lies *inside* a
+segment when waypoint w − 1 belongs to the same segment.
+
+Inside a segment a move **reconfigures** the arm, and is not allowed, when
+
+- its configuration changes: the closed-form branch (shoulder, elbow, wrist;
+  ``Arm.branch_closed_form``) of the configuration it ends in differs from the one it
+  starts in. Between two close poses that is a wrist (or elbow, or shoulder) flip, or a
+  pass through the singularity between the two (a controller refuses a linear move that
+  changes its status bits); or
+- a revolute joint steps by more than the **step limit** (rad): an unwind of a joint
+  whose range exceeds a revolution, a near-singular whip. The limit must lie below π, so
+  a turn change (a joint moving to another turn of the same pose, a step of 2π less the
+  other way's) is always one. Prismatic joints are not limited.
+
+Without a given limit it is **derived from the job**: per segment, the least step limit
+under which some branch sequence follows it keeping one configuration (a minimax dynamic
+programme over the ladder, :func:`least_limits`), and the job's limit is twice the
+largest of those, at least ``MIN_DERIVED_LIMIT`` and at most ``MAX_LIMIT``: room for the
+travel-optimal sequence beside the smoothest one, far below any flip or unwind.
+
+Branches from which the rest of their segment cannot be followed (:func:`followable`)
+are taken out of the ladder: every state the arm reaches through allowed moves then has an
+allowed move onward, so an action mask is never empty for that reason. A segment that no
+branch sequence follows is an error naming where it breaks.
+
+Pure numpy and numba; no I/O, no RNG.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ikbranch_gym.envs.jit import njit
+
+#: The derived limit's least value and factor over the job's hardest segment.
+MIN_DERIVED_LIMIT = math.radians(10.0)
+DERIVED_FACTOR = 2.0
+#: Every limit lies in (0, MAX_LIMIT]: below half a revolution, so no turn change fits.
+MAX_LIMIT = math.radians(179.0)
+#: ``configuration`` of a state whose closed-form branch is unknown (the task's start).
+UNKNOWN = -1
+
+
+def segment_index(n_waypoints: int, starts: Sequence[int]) -> np.ndarray:
+    """(N,) int64: the segment of each waypoint, segments beginning at the 0-based
+    waypoints ``starts`` (0 implied); ``ValueError`` unless they increase strictly inside
+    [0, N)."""
+    values = [int(s) for s in starts]
+    if any(not 0 <= s < n_waypoints for s in values):
+        raise ValueError(f"segment starts must be waypoints in [0, {n_waypoints}), got {values}")
+    if any(b <= a for a, b in itertools.pairwise(values)):
+        raise ValueError(f"segment starts must increase strictly, got {values}")
+    first = np.zeros(n_waypoints, dtype=np.int64)
+    first[[s for s in values if s > 0]] = 1
+    return np.cumsum(first)
+
+
+def inside_moves(segments: np.ndarray) -> np.ndarray:
+    """(N,) bool: the move into waypoint w lies inside a segment (w ≥ 1, same segment as
+    w − 1)."""
+    segments = np.asarray(segments)
+    inside = np.zeros(len(segments), dtype=bool)
+    inside[1:] = segments[1:] == segments[:-1]
+    return inside
+
+
+def check_limit(value: object, name: str = "max_joint_step") -> float:
+    """``value`` (rad) as a float, ``ValueError`` outside (0, MAX_LIMIT]."""
+    try:
+        limit = float(value)  # type: ignore[arg-type]  # any object: the error says what
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number of radians, 'auto' or None, got "
+                         f"{value!r}") from None
+    if not (math.isfinite(limit) and 0.0 < limit <= MAX_LIMIT):
+        raise ValueError(f"{name} must lie in (0, {MAX_LIMIT!r}] rad (0–179°: a step of "
+                         f"half a revolution or more is a turn change), got {value!r}")
+    return limit
+
+
+def largest_steps(q0: np.ndarray, q1: np.ndarray, revolute: np.ndarray) -> np.ndarray:
+    """(…,) the largest |Δq_j| over revolute joints j of q0 → q1 (…, dof) (0 for an arm
+    without revolute joints; NaN rows give NaN)."""
+    delta = np.abs(np.asarray(q1) - np.asarray(q0))[..., revolute]
+    if delta.shape[-1] == 0:
+        return np.zeros(delta.shape[:-1])
+    return delta.max(axis=-1)
+
+
+def blocked(q0: np.ndarray, config0: np.ndarray, q1: np.ndarray, config1: np.ndarray,
+            limit: float, revolute: np.ndarray) -> np.ndarray:
+    """(R, K) bool: the move from ``q0[r]`` (configuration ``config0[r]``, ``UNKNOWN``:
+    no configuration check) to ``q1[k]`` (``config1[k]``) reconfigures the arm (module
+    docstring); rows or columns with NaN are not blocked (they are no moves)."""
+    out = np.empty((len(q0), len(q1)), dtype=np.bool_)
+    _blocked(np.ascontiguousarray(q0, dtype=np.float64), np.asarray(config0, dtype=np.int64),
+             np.ascontiguousarray(q1, dtype=np.float64), np.asarray(config1, dtype=np.int64),
+             float(limit), np.asarray(revolute, dtype=np.bool_), out)
+    return out
+
+
+@njit
+def _blocked(q0: np.ndarray, config0: np.ndarray, q1: np.ndarray, config1: np.ndarray,
+             limit: float, revolute: np.ndarray, out: np.ndarray) -> None:
+    """:func:`blocked` into ``out`` (R, K)."""
+    for r in range(q0.shape[0]):
+        for k in range(q1.shape[0]):
+            out[r, k] = move_blocked(q0[r], config0[r], q1[k], config1[k], limit, revolute)
+
+
+@njit(inline="always")
+def move_blocked(q0: np.ndarray, config0: int, q1: np.ndarray, config1: int, limit: float,
+                 revolute: np.ndarray) -> bool:
+    """One move of :func:`blocked`."""
+    if config0 != UNKNOWN and config0 != config1:
+        return True
+    for j in range(len(q0)):
+        if revolute[j] and abs(q1[j] - q0[j]) > limit:  # NaN compares False: no move
+            return True
+    return False
+
+
+def least_limits(candidates: np.ndarray, valid: np.ndarray, inside: np.ndarray,
+                 configuration: np.ndarray, revolute: np.ndarray) -> np.ndarray:
+    """(N,) per waypoint w: the least step limit under which some branch sequence leads
+    from its segment's first waypoint to w keeping one configuration, valid branches only
+    (+inf where none does at any limit: a configuration the segment cannot keep). The
+    value at a segment's last waypoint is the least limit that follows the segment."""
+    n = len(candidates)
+    need = np.empty(n)
+    best = np.where(valid[0], 0.0, np.inf)
+    need[0] = best.min()
+    for w in range(1, n):
+        if not inside[w]:
+            best = np.where(valid[w], 0.0, np.inf)
+        else:
+            steps = largest_steps(candidates[w - 1][:, None], candidates[w][None, :], revolute)
+            same = configuration[:, None] == configuration[None, :]
+            usable = same & valid[w - 1][:, None] & valid[w][None, :]
+            via = np.where(usable, np.maximum(best[:, None], steps), np.inf)
+            best = via.min(axis=0)
+        need[w] = best.min()
+    return need
+
+
+def followable(candidates: np.ndarray, valid: np.ndarray, inside: np.ndarray,
+               configuration: np.ndarray, limit: float, revolute: np.ndarray) -> np.ndarray:
+    """(N, K) bool: valid branches from which the rest of their segment can be followed
+    without reconfiguring (every branch of a segment's last waypoint that is valid)."""
+    n = len(candidates)
+    alive = np.array(valid, dtype=bool)
+    for w in range(n - 2, -1, -1):
+        if not inside[w + 1]:
+            continue
+        moves = ~blocked(candidates[w], configuration, candidates[w + 1], configuration, limit,
+                         revolute)
+        alive[w] &= (moves & alive[w + 1][None, :]).any(axis=1)
+    return alive
+
+
+@dataclass(frozen=True, eq=False)
+class Continuity:
+    """A task's process continuity: ``inside`` (N,) which moves lie inside a segment,
+    ``segments`` (N,) each waypoint's segment, ``limit`` the step limit (rad; derived or
+    given), ``derived`` whether it was derived, ``needed`` (S,) per segment the least limit
+    that follows it."""
+
+    segments: np.ndarray
+    inside: np.ndarray
+    limit: float
+    derived: bool
+    needed: np.ndarray
+
+
+def continuity(candidates: np.ndarray, valid: np.ndarray, segments: np.ndarray,
+               configuration: np.ndarray, revolute: np.ndarray,
+               max_joint_step: float | str, where: Sequence[str] | None = None
+               ) -> tuple[Continuity, np.ndarray]:
+    """The continuity of a task's ladder (``candidates`` (N, K, dof), ``valid`` (N, K),
+    ``segments`` (N,)) with ``max_joint_step`` (rad, or ``"auto"``: derived) and its
+    followable branches (N, K) (:func:`followable`). ``ValueError`` for a segment no
+    branch sequence follows, naming it (``where[w]`` says where waypoint w came from)."""
+    segments = np.asarray(segments, dtype=np.int64)
+    inside = inside_moves(segments)
+    need = least_limits(candidates, valid, inside, configuration, revolute)
+    last = np.flatnonzero(np.append(segments[1:] != segments[:-1], True))
+    needed = need[last]
+    derived = isinstance(max_joint_step, str)
+    if derived:
+        if max_joint_step != "auto":
+            raise ValueError(f"max_joint_step must be a number of radians, 'auto' or None, got "
+                             f"{max_joint_step!r}")
+        hardest = float(needed[np.isfinite(needed)].max(initial=0.0))
+        limit = min(max(DERIVED_FACTOR * hardest, MIN_DERIVED_LIMIT), MAX_LIMIT)
+    else:
+        limit = check_limit(max_joint_step)
+    broken = np.flatnonzero(need > limit)
+    if len(broken):
+        w = int(broken[0])
+        segment = int(segments[w])
+        members = np.flatnonzero(segments == segment)
+
+        def name(i: int) -> str:
+            return f"waypoint {i}" + (f" ({where[i]})" if where is not None else "")
+
+        least = float(need[w])
+        if least <= MAX_LIMIT:
+            why = (f"it needs a step limit of {math.degrees(least):.2f}° there. Raise the "
+                   f"step limit, start a new segment there, or check the path")
+        else:
+            why = ("no branch sequence gets there keeping one configuration with steps below "
+                   "half a revolution (the arm must flip or unwind): start a new segment "
+                   "there, or check the path")
+        raise ValueError(
+            f"process segment {segment} (waypoints {members[0]}–{members[-1]}) cannot be "
+            f"followed without reconfiguring the arm at joint steps of at most "
+            f"{math.degrees(limit):.2f}°: it breaks between {name(w - 1)} and {name(w)}; "
+            f"{why}")
+    alive = followable(candidates, valid, inside, configuration, limit, revolute)
+    return Continuity(segments, inside, limit, derived, needed), alive

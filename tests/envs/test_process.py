@@ -1,0 +1,307 @@
+"""Process continuity (envs/process.py) and how the env, its vector env and every planner
+keep it: inside a process segment no move changes the arm's configuration or steps a
+joint beyond the limit.
+
+The job used throughout turns a KUKA KR 6 R700's tool about its own axis 25° per waypoint,
+29 times (725° in all): more than j6's ±350° allow, so every branch sequence must unwind
+j6 (a 335° step) once. As one segment the job is impossible; split where the unwind must
+happen it is not, and the unwind is the air move between the two segments.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import data_equivalence
+
+from ikbranch_gym.agents.evaluation import build_policy
+from ikbranch_gym.envs.ik_branch_env import IKBranchEnv
+from ikbranch_gym.envs.kinematics import make_arm
+from ikbranch_gym.envs.process import (
+    MAX_LIMIT,
+    UNKNOWN,
+    blocked,
+    continuity,
+    followable,
+    inside_moves,
+    least_limits,
+    segment_index,
+)
+from ikbranch_gym.envs.tasks.waypoint_file import write_waypoints
+from ikbranch_gym.envs.vector_env import IKBranchVectorEnv
+from tests.agents.brute_force import brute_force
+
+ARM = "kuka_kr6_r700"
+TURN = math.radians(25.0)
+N_SPIN = 30
+#: The first waypoint after the unwind every sequence must make (found by hand: j6 spans
+#: 700°, the 22nd turn of 25° leaves it).
+UNWIND = 22
+PLANNERS = ("dp_oracle", "receding_dp", "paper_rule", "paper_pair_rule")
+
+
+def _spin_poses(count: int = N_SPIN) -> np.ndarray:
+    arm = make_arm(ARM)
+    base = arm.fk(np.array([0.0, -1.2, 1.6, 0.0, 1.0, 0.0]))
+    poses = []
+    for i in range(count):
+        c, s = math.cos(TURN * i), math.sin(TURN * i)
+        turn = np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
+        poses.append(base @ turn)
+    return np.array(poses)
+
+
+@pytest.fixture(scope="module")
+def spin_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("spin") / "spin.csv"
+    write_waypoints(path, _spin_poses())
+    return str(path)
+
+
+def _env(path: str, **kwargs) -> IKBranchEnv:
+    return IKBranchEnv(arm=ARM, scene="empty", task="file", task_file=path, **kwargs)
+
+
+def _play(env: IKBranchEnv, spec: str) -> tuple[np.ndarray, list[int], bool]:
+    """The configurations and branches of ``spec``'s episode, and its success."""
+    _, policy = build_policy(spec, env, 0)
+    obs, info = env.reset(seed=0)
+    qs, branches, done = [], [], False
+    while not done:
+        action, _ = policy.predict(obs, action_masks=info["action_mask"], deterministic=True)
+        assert info["action_mask"][int(action)]
+        obs, _, done, _, info = env.step(int(action))
+        qs.append(env.q.copy())
+        branches.append(int(action))
+    return np.array(qs), branches, bool(info["is_success"])
+
+
+def _reconfigurations(arm, qs: np.ndarray, branches: list[int], limit: float) -> list[int]:
+    """Waypoints whose move in changed the closed-form branch or stepped a revolute joint
+    beyond ``limit`` (computed here from the joint values, not by the module)."""
+    closed = arm.branch_closed_form
+    out = []
+    for w in range(1, len(qs)):
+        step = np.abs(qs[w] - qs[w - 1])[arm.revolute_mask].max()
+        if closed[branches[w]] != closed[branches[w - 1]] or step > limit:
+            out.append(w)
+    return out
+
+
+# ------------------------------------------------------------------------ the functions
+def test_segments_and_moves_inside_them():
+    np.testing.assert_array_equal(segment_index(6, [0, 2, 5]), [0, 0, 1, 1, 1, 2])
+    np.testing.assert_array_equal(segment_index(3, []), [0, 0, 0])
+    np.testing.assert_array_equal(inside_moves(np.array([0, 0, 1, 1, 2])),
+                                  [False, True, False, True, False])
+    for starts in ([3], [-1], [2, 2], [2, 1]):
+        with pytest.raises(ValueError, match="segment starts"):
+            segment_index(3, starts)
+
+
+def test_a_move_is_blocked_by_a_new_configuration_or_a_long_step():
+    revolute = np.array([True, True, False])
+    q0 = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    q1 = np.array([[0.3, -0.3, 5.0],  # at the limit (0.3), the prismatic joint free
+                   [0.0, 0.31, 0.0],  # beyond it
+                   [np.nan, 0.0, 0.0]])  # no configuration: no move
+    config1 = np.array([4, 4, 4])
+    out = blocked(q0, np.array([4, 5]), q1, config1, 0.3, revolute)
+    np.testing.assert_array_equal(out, [[False, True, False], [True, True, True]])
+    unknown = blocked(q0[:1], np.array([UNKNOWN]), q1, np.array([9, 9, 9]), 0.3, revolute)
+    np.testing.assert_array_equal(unknown, [[False, True, False]])
+
+
+def _random_ladder(rng, n=5, k=6, dof=3):
+    candidates = rng.normal(0.0, 0.6, size=(n, k, dof))
+    valid = rng.random((n, k)) < 0.8
+    valid[:, 0] = True
+    candidates[~valid] = np.nan
+    configuration = np.array([0, 0, 1, 1, 2, 2])
+    return candidates, valid, configuration, np.array([True, True, False])
+
+
+def _sequences(candidates, valid, configuration, revolute, first, last):
+    """Every valid branch sequence over waypoints [first, last] keeping one configuration,
+    with its largest revolute step."""
+    k = valid.shape[1]
+    for seq in itertools.product(range(k), repeat=last - first + 1):
+        waypoints = range(first, last + 1)
+        if not all(valid[w, b] for w, b in zip(waypoints, seq, strict=True)):
+            continue
+        if len({configuration[b] for b in seq}) != 1:
+            continue
+        steps = [np.abs(candidates[w + 1, b] - candidates[w, a])[revolute].max()
+                 for w, a, b in zip(waypoints, seq, seq[1:], strict=False)]
+        yield seq, max(steps, default=0.0)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_least_limits_and_followable_branches_equal_enumeration(seed):
+    rng = np.random.default_rng(seed)
+    candidates, valid, configuration, revolute = _random_ladder(rng)
+    segments = np.array([0, 0, 0, 1, 1])
+    inside = inside_moves(segments)
+    need = least_limits(candidates, valid, inside, configuration, revolute)
+    for w in range(5):
+        first = 0 if w < 3 else 3
+        options = [step for _, step in _sequences(candidates, valid, configuration, revolute,
+                                                   first, w)]
+        assert need[w] == min(options, default=np.inf)
+    limit = float(np.median(need[np.isfinite(need)])) + 0.05
+    alive = followable(candidates, valid, inside, configuration, limit, revolute)
+    for w in range(5):
+        last = 2 if w < 3 else 4
+        for b in range(6):
+            expected = valid[w, b] and any(
+                seq[0] == b and step <= limit for seq, step in _sequences(
+                    candidates, valid, configuration, revolute, w, last))
+            assert alive[w, b] == expected, (w, b)
+
+
+def test_the_derived_limit_and_its_bounds():
+    candidates = np.zeros((3, 1, 1))
+    candidates[:, 0, 0] = [0.0, 0.02, 0.5]
+    valid = np.ones((3, 1), dtype=bool)
+    one = np.zeros(1, dtype=np.int64)
+    revolute = np.array([True])
+    kept, _ = continuity(candidates, valid, np.array([0, 0, 1]), one, revolute, "auto")
+    assert kept.derived and kept.limit == math.radians(10.0)  # 2 × 0.02 rad is less
+    kept, _ = continuity(candidates, valid, np.array([0, 0, 0]), one, revolute, "auto")
+    assert kept.limit == 2 * 0.48 and kept.needed.tolist() == [0.48]
+    candidates[2, 0, 0] = 2.0  # a step of 1.98 rad: twice that is past the ceiling
+    kept, _ = continuity(candidates, valid, np.array([0, 0, 0]), one, revolute, "auto")
+    assert kept.limit == MAX_LIMIT
+    with pytest.raises(ValueError, match="must lie in"):
+        continuity(candidates, valid, np.array([0, 0, 0]), one, revolute, math.pi)
+    with pytest.raises(ValueError, match="'auto' or None"):
+        continuity(candidates, valid, np.array([0, 0, 0]), one, revolute, "smooth")
+
+
+# ---------------------------------------------------------------------------- the env
+def test_a_segment_no_sequence_follows_is_an_error_naming_where(spin_file):
+    with pytest.raises(ValueError, match=rf"process segment 0 \(waypoints 0–29\).*between "
+                                         rf"waypoint {UNWIND - 1} and waypoint {UNWIND}.*"
+                                         "start a new segment there"):
+        _env(spin_file, max_joint_step="auto").reset(seed=0)
+    with pytest.raises(ValueError, match=r"needs a step limit of 25\.00° there"):
+        _env(spin_file, max_joint_step=math.radians(20.0), task_segments=[UNWIND]).reset(seed=0)
+
+
+@pytest.mark.parametrize("spec", PLANNERS)
+def test_every_planner_keeps_the_configuration_inside_segments(spin_file, spec):
+    arm = make_arm(ARM)
+    env = _env(spin_file, max_joint_step="auto", task_segments=[UNWIND])
+    qs, branches, success = _play(env, spec)
+    limit = env.ladder.limit
+    assert limit == pytest.approx(2 * TURN, abs=1e-12)  # derived: twice the 25° needed
+    assert success and len(qs) == N_SPIN
+    assert _reconfigurations(arm, qs, branches, limit) == [UNWIND]  # the air move only
+    free = _env(spin_file)  # the same job without continuity
+    qs, branches, success = _play(free, spec)
+    moved = _reconfigurations(arm, qs, branches, limit)
+    assert success and moved  # the unwind is unavoidable
+    if spec != "dp_oracle":  # the travel rules unwind inside the first segment
+        assert any(w != UNWIND for w in moved), moved
+
+
+def test_masks_leave_out_exactly_the_reconfiguring_moves(spin_file):
+    arm = make_arm(ARM)
+    env = _env(spin_file, max_joint_step=math.radians(40.0), task_segments=[UNWIND])
+    rng = np.random.default_rng(1)
+    _, info = env.reset(seed=0)
+    closed, last = arm.branch_closed_form, None
+    for w in range(N_SPIN):
+        mask = info["action_mask"]
+        np.testing.assert_array_equal(mask, env.action_masks())
+        candidates, valid = env.candidates[w], env.valid[w]
+        expected = valid.copy()
+        if w not in (0, UNWIND):
+            steps = np.abs(candidates - env.q)[:, arm.revolute_mask].max(axis=1)
+            expected &= (closed == closed[last]) & (steps <= math.radians(40.0))
+        np.testing.assert_array_equal(mask, expected)
+        assert mask.any()
+        if w == 3:  # a valid branch outside the mask is an invalid action
+            outside = np.flatnonzero(valid & ~mask)
+            assert len(outside)
+            before = env.q.copy()
+            probe = _env(spin_file, max_joint_step=math.radians(40.0), task_segments=[UNWIND])
+            probe.__setstate__(env.__getstate__())
+            _, reward, terminated, _, probe_info = probe.step(int(outside[0]))
+            assert terminated and probe_info["invalid"] and not probe_info["collision"]
+            assert probe_info["travel"] == 0.0
+            np.testing.assert_array_equal(probe.q, before)
+            assert reward == probe_info["reward_invalid"] + probe_info["reward_unfinished"]
+        last = int(rng.choice(np.flatnonzero(mask)))
+        _, _, _, _, info = env.step(last)
+
+
+def test_followable_branches_are_the_only_valid_ones(spin_file):
+    """A branch from which its segment cannot be followed is taken out of the ladder."""
+    arm = make_arm(ARM)
+    free, kept = _env(spin_file), _env(spin_file, max_joint_step="auto", task_segments=[UNWIND])
+    free.reset(seed=0)
+    kept.reset(seed=0)
+    assert kept.valid.sum() < free.valid.sum()
+    assert not (kept.valid & ~free.valid).any()
+    assert np.isnan(kept.candidates[~kept.valid]).all()
+    expected = followable(free.candidates, free.valid, inside_moves(segment_index(N_SPIN,
+                                                                                  [UNWIND])),
+                          arm.branch_closed_form, kept.ladder.limit, arm.revolute_mask)
+    np.testing.assert_array_equal(kept.valid, expected)
+
+
+def test_the_dp_is_the_optimum_under_continuity(tmp_path):
+    """Five waypoints of the spin job in one segment: every mask-respecting sequence
+    enumerated (reconfiguring moves priced as the invalid actions they are)."""
+    path = tmp_path / "short.csv"
+    write_waypoints(path, _spin_poses(5))
+    env = IKBranchEnv(arm=ARM, scene="empty", task="file", task_file=str(path),
+                      max_joint_step=math.radians(30.0), time_weight=0.5)
+    _, policy = build_policy("dp_oracle", env, 0)
+    obs, info = env.reset(seed=0)
+    total, done = 0.0, False
+    best = brute_force(env)
+    while not done:
+        action, _ = policy.predict(obs, action_masks=info["action_mask"], deterministic=True)
+        obs, reward, done, _, info = env.step(int(action))
+        total += reward
+    assert info["is_success"]
+    assert total == pytest.approx(best, rel=1e-12, abs=1e-12)
+
+
+def test_the_vector_env_is_the_single_env_bit_for_bit(spin_file):
+    kwargs = {"arm": ARM, "scene": "empty", "task": "file", "task_file": spin_file,
+              "max_joint_step": "auto", "task_segments": [UNWIND]}
+    native = IKBranchVectorEnv(num_envs=3, **kwargs)
+    sync = gym.vector.SyncVectorEnv([lambda: gym.make("IKBranch/Cartesian-v2", **kwargs)] * 3)
+    first = native.reset(seed=2)
+    assert data_equivalence(first, sync.reset(seed=2), exact=True)
+    infos, rng = first[1], np.random.default_rng(5)
+    for _ in range(70):
+        masks = infos["action_mask"]
+        actions = (rng.random(masks.shape) * masks).argmax(axis=1)
+        unmasked = rng.random(3) < 0.05
+        actions[unmasked] = rng.integers(masks.shape[1], size=unmasked.sum())
+        step = native.step(actions)
+        assert data_equivalence(step, sync.step(actions), exact=True)
+        infos = step[4]
+
+
+def test_continuity_needs_a_file_task_and_a_limit_below_half_a_turn(spin_file):
+    with pytest.raises(ValueError, match=r"max_joint_step .* is for task='file'"):
+        IKBranchEnv(arm=ARM, scene="empty", max_joint_step="auto")
+    with pytest.raises(ValueError, match="task_segments are for task='file'"):
+        IKBranchEnv(arm=ARM, scene="empty", task_segments=[2])
+    with pytest.raises(ValueError, match="must lie in"):
+        _env(spin_file, max_joint_step=4.0)
+    with pytest.raises(ValueError, match="'auto' or None"):
+        _env(spin_file, max_joint_step="yes").reset(seed=0)
+    with pytest.raises(ValueError, match="task_segments must be a list"):
+        _env(spin_file, task_segments=[1.5])
+    with pytest.raises(ValueError, match="segment starts must"):
+        _env(spin_file, task_segments=[40])
