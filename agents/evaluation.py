@@ -87,9 +87,16 @@ class Episode:
     decision_seconds: float  # wall time inside predict, summed over the episode
 
 
-def run_episode(policy: Policy, env: gym.Env, seed: int) -> Episode:
+#: Called after every step of :func:`run_episode` with the action taken, its reward and
+#: its ``info``.
+StepObserver = Callable[[int, float, dict[str, Any]], None]
+
+
+def run_episode(policy: Policy, env: gym.Env, seed: int,
+                observe: StepObserver | None = None) -> Episode:
     """Play one episode of ``env`` reset with ``seed``, ``policy`` choosing deterministically
-    among the branches ``env``'s outermost wrapper allows (``agents.base.action_mask``)."""
+    among the branches ``env``'s outermost wrapper allows (``agents.base.action_mask``);
+    ``observe(action, reward, info)`` sees each step (``ikbranch plan`` records its plans so)."""
     obs, info = env.reset(seed=seed)
     state, start = None, True
     reward = travel = duration = decision = 0.0
@@ -103,7 +110,10 @@ def run_episode(policy: Policy, env: gym.Env, seed: int) -> Episode:
             action_masks=masks,
         )
         decision += time.perf_counter() - tick
-        obs, r, terminated, truncated, info = env.step(int(np.asarray(action).item()))
+        chosen = int(np.asarray(action).item())
+        obs, r, terminated, truncated, info = env.step(chosen)
+        if observe is not None:
+            observe(chosen, float(r), info)
         start, done = False, terminated or truncated
         reward += float(r)
         travel += float(info["travel"])

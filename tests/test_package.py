@@ -50,6 +50,21 @@ def test_the_core_dependencies_are_the_environments_only():
     assert any(spec.startswith("coacd") for spec in extras["plan"])
 
 
+def test_every_package_folder_ships_in_the_wheel():
+    # setuptools is given the package list by hand (the folders are links): a new
+    # subpackage missing from it would be left out of the wheel silently.
+    listed = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"][
+        "packages"])
+    found = {"ikbranch_gym"}
+    for folder in FOLDERS:
+        for init in (ROOT / folder).rglob("__init__.py"):
+            parts = init.parent.relative_to(ROOT).parts
+            found.add(".".join(("ikbranch_gym", *parts)))
+    data = {"ikbranch_gym.configs"}  # the hyper-parameters: a folder of data, no code
+    assert data <= listed
+    assert found == listed - data, (sorted(found - listed), sorted(listed - data - found))
+
+
 def test_nothing_loads_under_a_bare_folder_name(tmp_path):
     # Every module of the package imported: each exists once, under ikbranch_gym only.
     result = _python(f"""

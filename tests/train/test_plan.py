@@ -33,6 +33,7 @@ from ikbranch_gym.envs.tools import Tool
 from ikbranch_gym.train import cli
 from ikbranch_gym.train import plan as plan_module
 from ikbranch_gym.train.plan import EXIT_INPUT, EXIT_INTERNAL, EXIT_OK, EXIT_UNSAFE, main, play
+from ikbranch_gym.train.plan import cli as plan_cli
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = ROOT / "examples"
@@ -481,7 +482,7 @@ def test_an_internal_failure_is_status_1_and_writes_nothing(bad_files, capsys, m
     def broken(*args, **kwargs):
         raise RuntimeError("renderer exploded")
 
-    monkeypatch.setattr(plan_module, "render_frames", broken)
+    monkeypatch.setattr(plan_cli, "render_frames", broken)
     before = _listing(bad_files)
     assert main(["--arm", "anthropomorphic", "--waypoints", "paper.csv", "--out", "plan.csv",
                  "--json", "plan.json", "--gif", "plan.gif"]) == EXIT_INTERNAL

@@ -1,0 +1,151 @@
+"""``ikbranch plan``'s command line: the parser, the run, the exit status."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import traceback
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+from ikbranch_gym.agents.evaluation import ORACLE
+from ikbranch_gym.envs.files import write_all_atomically
+
+from . import __doc__ as DESCRIPTION
+from .animation import animation_frames, gif_bytes, render_frames
+from .outputs import plan_csv, plan_json, summary_table
+from .playing import plan
+from .request import PLANNERS, PlanInputError, output_paths, request_from_args
+
+if TYPE_CHECKING:
+    pass
+
+EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_UNSAFE = 0, 1, 2, 3
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="ikbranch plan", description=DESCRIPTION,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--arm", required=True, help="an arm name (envs.kinematics.ARM_NAMES)")
+    p.add_argument("--arm-params", metavar="JSON", help="arm parameters (make_arm), a JSON object")
+    p.add_argument("--waypoints", required=True, metavar="FILE",
+                   help="waypoint file, CSV or JSON (docs/files.md)")
+    p.add_argument("--points-abc", type=float, nargs=3, metavar=("A", "B", "C"),
+                   help="four-point files: a, b, c in mm (when the file has no a,b,c columns)")
+    p.add_argument("--scene", metavar="FILE",
+                   help="MJCF scene file of the cell (default: the empty scene, floor only)")
+    p.add_argument("--scene-options", metavar="JSON",
+                   help="JSON object: base_pos, base_quat | base_rpy, floor, decompose, "
+                        "coacd_options")
+    p.add_argument("--tool", metavar="JSON|FILE",
+                   help="the held tool: JSON text or a JSON file (envs/tools.py); waypoints "
+                        "then target its TCP")
+    p.add_argument("--start", default="free", metavar="free|home|Q",
+                   help="free (default: the first branch at no cost), home, or "
+                        "comma-separated joint values in rad/m (--start=-0.1,… for a "
+                        "leading minus sign also works)")
+    p.add_argument("--start-degrees", action="store_true",
+                   help="--start values are in degrees (revolute) and mm (prismatic)")
+    p.add_argument("--planner", action="append", dest="planners", metavar="NAME|MODEL.zip",
+                   help=f"repeatable: {', '.join(PLANNERS)} (receding_dp:H, fixed:BRANCH, "
+                        "random:SEED) or an SB3 model zip; the first is written to --out "
+                        "(default dp_oracle); the DP oracle always runs")
+    p.add_argument("--segments", metavar="W1,W2,…",
+                   help="the 0-based waypoints where process segments begin (default: the "
+                        "file's segment column or blank lines; without them one segment)")
+    p.add_argument("--max-joint-step", default="auto", metavar="DEG|auto|off",
+                   help="inside a segment no move may change the configuration or step a "
+                        "joint by more than this (degrees; auto: twice the least step the "
+                        "hardest segment needs, 10–179; off: no continuity)")
+    p.add_argument("--resolution", type=float, default=0.01, metavar="M",
+                   help="collision-check clearance and step along paths (m, default 0.01)")
+    p.add_argument("--env-kwargs", metavar="JSON",
+                   help="further IKBranchEnv arguments, e.g. {\"time_weight\": 1, "
+                        "\"lookahead\": 2, \"observation\": \"ladder\"} (for a model)")
+    p.add_argument("--out", required=True, metavar="plan.csv", help="the plan (CSV)")
+    p.add_argument("--json", metavar="FILE", help="everything, as JSON")
+    p.add_argument("--gif", metavar="FILE", help="an animation of the plan")
+    p.add_argument("--gif-size", type=int, nargs=2, default=(480, 360),
+                   metavar=("W", "H"), help="GIF frame size in pixels (480 360)")
+    p.add_argument("--gif-fps", type=float, default=12.0,
+                   help="GIF frames per second along a move (12)")
+    p.add_argument("--gif-speed", type=float, default=1.0,
+                   help="GIF playback speed: 1 is real time at the env's joint speeds (1)")
+    return p
+
+
+def _join_negative_start(argv: list[str]) -> list[str]:
+    """``--start -0.5,1,…`` as ``--start=-0.5,1,…`` (argparse takes a leading minus for an
+    option)."""
+    out, i = [], 0
+    while i < len(argv):
+        value = argv[i + 1] if i + 1 < len(argv) else ""
+        if argv[i] == "--start" and value[:1] == "-" and (value[1:2].isdigit()
+                                                          or value[1:2] == "."):
+            out.append(f"--start={argv[i + 1]}")
+            i += 2
+            continue
+        out.append(argv[i])
+        i += 1
+    return out
+
+
+def _fail(message: str) -> int:
+    print(f"ikbranch plan: error: {message}", file=sys.stderr)
+    return EXIT_INPUT
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = parser().parse_args(_join_negative_start(argv))
+    try:
+        width, height = args.gif_size
+        if width < 16 or height < 16:
+            raise PlanInputError(f"--gif-size must be at least 16 16, got {width} {height}")
+        for option, value in (("--gif-fps", args.gif_fps), ("--gif-speed", args.gif_speed)):
+            if not (math.isfinite(value) and value > 0):
+                raise PlanInputError(f"{option} must be a positive number, got {value!r}")
+        request = request_from_args(args)
+        outputs = output_paths(args, request)
+        result = plan(request)
+        files = {outputs["--out"]: plan_csv(result).encode("utf-8")}
+        if "--json" in outputs:
+            record = plan_json(result, argv)
+            files[outputs["--json"]] = (json.dumps(record, indent=1, allow_nan=False)
+                                        + "\n").encode("utf-8")
+        if "--gif" in outputs:
+            frames = animation_frames(result, fps=args.gif_fps, speed=args.gif_speed)
+            images = render_frames(result, frames, width, height)
+            files[outputs["--gif"]] = gif_bytes(images, [f.duration for f in frames])
+        write_all_atomically(files)  # every file or none
+    except PlanInputError as exc:
+        return _fail(str(exc))
+    except ValueError as exc:  # the env's and the planners' checks of the inputs
+        message = str(exc)
+        if message.startswith("process segment"):
+            message += (" (segments: --segments, a blank line or a segment column in the "
+                        "file; --max-joint-step DEG raises the limit, off plans without "
+                        "process continuity)")
+        return _fail(message)
+    except OSError as exc:
+        return _fail(f"cannot write the outputs: {exc}")
+    except Exception:  # a bug: say so, with the traceback to report
+        print("ikbranch plan: internal error (please report it with this traceback):",
+              file=sys.stderr)
+        traceback.print_exc()
+        return EXIT_INTERNAL
+    print(summary_table(result))
+    chosen = result.chosen_run
+    print(f"\n* {chosen.name}: {len(chosen.reached)} of {chosen.n_waypoints} waypoints, "
+          f"travel {math.degrees(chosen.travel):.2f}°, written to "
+          + ", ".join(str(path) for path in files))
+    if not chosen.success:
+        optimum = result.optimum
+        note = "" if optimum.success else (
+            f"; even {ORACLE} finds no collision-free plan ({optimum.problem()})")
+        print(f"ikbranch plan: warning: the plan of {chosen.name} is not safe to run: "
+              f"{chosen.problem()}{note}", file=sys.stderr)
+        return EXIT_UNSAFE
+    return EXIT_OK

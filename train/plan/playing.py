@@ -1,0 +1,255 @@
+"""Playing the planners: each in its own fresh env, recorded step by step, into a
+:class:`Plan` (every planner's run beside the optimum, and the process view of each row)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ikbranch_gym.agents.evaluation import ORACLE, run_episode
+from ikbranch_gym.envs.process import MAX_LIMIT, largest_steps, segment_index
+
+from .request import PlanRequest, make_env
+
+if TYPE_CHECKING:
+    pass
+
+#: The seed of ``reset`` and of ``random`` (a file task draws nothing).
+SEED = 0
+
+
+# --------------------------------------------------------------------------- playing
+@dataclass(frozen=True)
+class Step:
+    """One step of a plan: the move into ``waypoint`` with ``branch``; ``q`` (dof,) is
+    ``env.q`` after it (the configuration moved to), ``terms`` the reward terms."""
+
+    waypoint: int
+    branch: int
+    label: str
+    q: np.ndarray
+    reward: float
+    terms: dict[str, float]
+    travel: float
+    time: float
+    collision: bool
+    invalid: bool
+    #: A colliding move: the geom pairs in contact at its first colliding sample (the
+    #: exact check's own contacts; at a free start the configuration's), and where along
+    #: the move that sample lies (t in [0, 1]; 1.0 at a free start).
+    contacts: tuple[tuple[str, str], ...] = ()
+    contact_fraction: float | None = None
+
+
+@dataclass(frozen=True)
+class PlanRun:
+    """One planner's episode on the task."""
+
+    name: str
+    spec: str
+    steps: tuple[Step, ...]
+    reward: float  # the return: the env's rewards summed in order
+    success: bool
+    decision_seconds: float  # inside ``predict``, planning included
+    n_waypoints: int
+
+    @property
+    def travel(self) -> float:
+        return sum(s.travel for s in self.steps)
+
+    @property
+    def time(self) -> float:
+        return sum(s.time for s in self.steps)
+
+    @property
+    def collisions(self) -> int:
+        return sum(s.collision for s in self.steps)
+
+    @property
+    def reached(self) -> tuple[Step, ...]:
+        """The steps that moved the arm (every step but an invalid branch's)."""
+        return tuple(s for s in self.steps if not s.invalid)
+
+    def problem(self) -> str:
+        """Why the plan is not a success ("" if it is)."""
+        if self.success:
+            return ""
+        reasons = []
+        for step in self.steps:
+            if step.collision:
+                where = ("" if step.contact_fraction is None
+                         else f" at {step.contact_fraction:.0%} of the move")
+                pairs = ", ".join(f"{a} – {b}" for a, b in step.contacts)
+                reasons.append(f"the move into waypoint {step.waypoint} collides{where}"
+                               + (f" ({pairs})" if pairs else ""))
+        bad = [s.waypoint for s in self.steps if s.invalid]
+        if bad:
+            reasons.append(f"an invalid branch at waypoint {bad[0]}")
+        done = len(self.reached)
+        if done < self.n_waypoints:
+            reasons.append(f"only {done} of {self.n_waypoints} waypoints were reached")
+        return "; ".join(reasons) or "the episode did not succeed"
+
+
+def play(policy: Any, env: Any) -> tuple[tuple[Step, ...], float, bool, float]:
+    """One deterministic episode of ``policy`` on ``env``, played by
+    ``agents.evaluation.run_episode`` and recorded step by step: (steps, return, success,
+    decision seconds)."""
+    base = env.unwrapped
+    labels = base.arm.branch_labels
+    steps: list[Step] = []
+
+    def record(branch: int, reward: float, info: dict[str, Any]) -> None:
+        before = steps[-1].q if steps else base.task.start  # where the move began
+        steps.append(Step(
+            waypoint=int(info["waypoint"]), branch=branch, label=labels[branch],
+            q=base.q.copy(), reward=reward,
+            terms={k: float(v) for k, v in info.items() if k.startswith("reward_")},
+            travel=float(info["travel"]), time=float(info["time"]),
+            collision=bool(info["collision"]), invalid=bool(info["invalid"]),
+            **(_contacts(base, before, int(info["waypoint"])) if info["collision"] else {}),
+        ))
+
+    episode = run_episode(policy, env, SEED, observe=record)
+    return tuple(steps), episode.reward, episode.success, episode.decision_seconds
+
+
+def _contacts(base: Any, before: np.ndarray, waypoint: int) -> dict[str, Any]:
+    """What a colliding move hits: the exact check's contacts at its first colliding
+    sample (``Step.contacts``, ``Step.contact_fraction``)."""
+    if waypoint == 0 and base.task.free_start:  # the first pick: the configuration itself
+        found = base.checker.contacts(base.q)
+        return {"contacts": tuple(sorted({(c.geom1, c.geom2) for c in found})),
+                "contact_fraction": 1.0}
+    result = base.checker.check_path(before, base.q)
+    return {"contacts": result.pairs, "contact_fraction": result.first_fraction}
+
+
+@dataclass(frozen=True)
+class ProcessMove:
+    """A plan row's process view: its waypoint's ``segment``, the ``configuration`` it
+    stands in (the closed-form branch label, turns aside), the move's largest revolute
+    joint step (rad; 0 for a free start's first row), whether it is an ``air_move`` (into
+    the first waypoint or a new segment) and whether it reconfigures the arm (a new
+    configuration, or a step beyond the plan's limit)."""
+
+    segment: int
+    configuration: str
+    max_step: float
+    air_move: bool
+    reconfiguration: bool
+
+
+@dataclass
+class Plan:
+    """Every planner's run on the task, the oracle's first; ``chosen`` the first
+    ``--planner``'s key (the one written to the CSV)."""
+
+    request: PlanRequest
+    runs: dict[str, PlanRun]
+    chosen: str
+    arm: Any
+    names: tuple[str, ...]
+    sources: tuple[str, ...]  # "line 3" / "entry 2" per waypoint
+    file_poses: np.ndarray  # (N, 4, 4) as written in the file (cell frame, TCP)
+    targets: np.ndarray  # (N, 4, 4) the fk frame's poses in the base frame
+    start: np.ndarray  # where the first move starts (free start: unused)
+    free_start: bool
+    model: Any  # the MuJoCo model (for the animation)
+    segments: np.ndarray  # (N,) each waypoint's process segment
+    #: The step limit inside segments (rad): given or derived; with continuity off, half a
+    #: revolution (``MAX_LIMIT``: only flips and turn changes are flagged). ``continuity``:
+    #: the ladder's ``envs.process.Continuity`` (None: off).
+    limit: float
+    continuity: Any = None
+    scene: Any = None  # the SceneFile, if any
+    tool: Any = None  # the Tool, if any
+
+    @property
+    def optimum(self) -> PlanRun:
+        return self.runs[ORACLE]
+
+    def moves(self, run: PlanRun | None = None) -> list[ProcessMove]:
+        """The process view of each row of ``run`` (default the chosen planner's)."""
+        run = self.chosen_run if run is None else run
+        arm = self.arm
+        closed, labels = arm.branch_closed_form, arm.closed_form_labels
+        out: list[ProcessMove] = []
+        previous: Step | None = None
+        for step in run.reached:
+            air = step.waypoint == 0 or bool(
+                self.segments[step.waypoint] != self.segments[step.waypoint - 1])
+            if previous is None and self.free_start:  # the arm stands there already
+                largest, changed = 0.0, False
+            else:
+                before = self.start if previous is None else previous.q
+                largest = float(largest_steps(before, step.q, arm.revolute_mask))
+                changed = largest > self.limit or (
+                    previous is not None and closed[previous.branch] != closed[step.branch])
+            out.append(ProcessMove(int(self.segments[step.waypoint]),
+                                   labels[closed[step.branch]], largest, bool(air),
+                                   bool(changed)))
+            previous = step
+        return out
+
+    @property
+    def chosen_run(self) -> PlanRun:
+        return self.runs[self.chosen]
+
+    def gap(self, run: PlanRun) -> float | None:
+        """(optimum − return) / |optimum| as ``agents.evaluation.summarise`` measures it."""
+        best = self.optimum.reward
+        if best != 0.0:
+            return (best - run.reward) / abs(best)
+        return 0.0 if run.reward == best else None
+
+
+def plan(request: PlanRequest) -> Plan:
+    """Play every planner of ``request`` (and the oracle) on its task, each in its own
+    fresh env, so no planner inherits another's collision cache and its decision time is
+    its own. Every planner first plays once untimed on a throwaway env: numba compiles its
+    kernels on first use (or loads them from its cache), torch warms up, and a first run
+    after an install would otherwise report that as decision time. ``ValueError`` (a bad
+    file, an unreachable row, an unknown planner, a model that does not fit the env, …)
+    is bad input."""
+    from ikbranch_gym.agents.evaluation import build_policy
+    from ikbranch_gym.envs.tasks.waypoint_file import read_waypoints
+
+    first: Any = make_env(request)  # fails early on bad input, before any planner is built
+    specs = [ORACLE, *(spec for spec in request.planners if spec != ORACLE)]
+    opened = [first]
+    runs: dict[str, PlanRun] = {}
+    try:
+        for spec in dict.fromkeys(specs):  # untimed warm-up plays
+            play(build_policy(spec, first, SEED)[1], first)
+        for spec in specs:
+            env: Any = make_env(request)
+            opened.append(env)
+            _, policy = build_policy(spec, env, SEED)
+            key, copy = spec, 2
+            while key in runs:  # the same spec twice: its own row
+                key, copy = f"{spec}#{copy}", copy + 1
+            steps, reward, success, decision = play(policy, env)
+            runs[key] = PlanRun(key, spec, steps, reward, success, decision,
+                                env.unwrapped.task.n_waypoints)
+    finally:
+        for env in opened:
+            env.close()
+    base = first.unwrapped
+    a, b, c = request.points_abc or (None, None, None)
+    waypoints = read_waypoints(request.waypoints, a=a, b=b, c=c)
+    task = base.task
+    kept = base.ladder.continuity
+    segments = (waypoints.segments if request.segments is None
+                else segment_index(len(waypoints), request.segments))
+    return Plan(
+        request=request, runs=runs, chosen=request.planners[0], arm=base.arm,
+        names=waypoints.names,
+        sources=tuple(waypoints.where(i) for i in range(len(waypoints))),
+        file_poses=np.array(waypoints.poses), targets=np.array(task.poses),
+        start=np.array(task.start), free_start=bool(task.free_start), model=base.model,
+        segments=segments, limit=MAX_LIMIT if kept is None else kept.limit, continuity=kept,
+        scene=base.scene_file, tool=base.tool,
+    )
