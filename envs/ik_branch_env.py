@@ -12,6 +12,7 @@ from gymnasium import spaces
 from ikbranch_gym.envs.costs import TransitionCost
 from ikbranch_gym.envs.episodes import EpisodeBatch, new_scene_token
 from ikbranch_gym.envs.kinematics import ARM_NAMES, Arm, make_arm
+from ikbranch_gym.envs.kinematics.singularities import has_singularity_rules
 from ikbranch_gym.envs.models import SCENES, CollisionChecker, build_arm_model
 from ikbranch_gym.envs.models.filter import CompiledFilter
 from ikbranch_gym.envs.models.scene_file import base_pose, load_scene_file
@@ -96,6 +97,9 @@ class IKBranchEnv(gym.Env):
     from which their segment cannot be followed are not valid at all, so the mask never
     empties for that reason; a segment that cannot be followed is a ``ValueError`` at
     reset naming where it breaks. Moves between segments may reconfigure.
+    ``singularity_margin`` and ``shoulder_margin`` (OPW and UR arms, waypoint-file tasks)
+    leave out of the ladder every branch that near a singular configuration
+    (``envs.kinematics.singularities``).
     ``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")`` advances N
     copies of this env together in one process, each the single env seeded s + i bit for
     bit (``envs.vector_env.IKBranchVectorEnv``; its docstring is its manual).
@@ -197,6 +201,8 @@ class IKBranchEnv(gym.Env):
     task_points_abc       None                    four-point files: a, b, c (mm)
     task_segments         None                    first waypoints of its process segments
     max_joint_step        None                    process continuity: step limit (rad), "auto"
+    singularity_margin    None                    no branch this near a wrist/elbow singular (rad)
+    shoulder_margin       None                    no branch this near the shoulder singularity (m)
     scene_file            None                    ``scene="file"``: an MJCF file of the cell
     scene_options         None                    base_pos/_quat/_rpy, floor, decompose, …
     tool                  None                    a tool (``envs/tools.py``); None: built-in
@@ -209,7 +215,8 @@ class IKBranchEnv(gym.Env):
     ## Version history
     - Same ids, same behaviour (2026-12-04): process continuity for waypoint-file tasks,
       the new arguments ``max_joint_step`` and ``task_segments`` (off by default); waypoint
-      files may carry a ``segment`` column.
+      files may carry a ``segment`` column; ``singularity_margin`` and ``shoulder_margin``
+      keep branches away from singular configurations (off by default).
     - The current generation (2026-12-04): Cartesian, Cylindrical, Spherical,
       Anthropomorphic, Cylindrical4 **-v3**, ToolTransfer **-v2**, DualRRPRPP, DualRRRPPP,
       DualPPRPRR **-v2**, RodMechanism **-v3**, KukaKR6, UR5e, IRB4600ToolTransfer,
@@ -292,6 +299,8 @@ class IKBranchEnv(gym.Env):
         task_points_abc: list[float] | None = None,
         task_segments: list[int] | None = None,
         max_joint_step: float | str | None = None,
+        singularity_margin: float | None = None,
+        shoulder_margin: float | None = None,
         scene_file: str | None = None,
         scene_options: dict[str, Any] | None = None,
         tool: dict[str, Any] | None = None,
@@ -318,6 +327,22 @@ class IKBranchEnv(gym.Env):
                                  "its waypoints form the process segments")
             if max_joint_step != "auto":
                 check_limit(max_joint_step)
+        for name, margin in (("singularity_margin", singularity_margin),
+                             ("shoulder_margin", shoulder_margin)):
+            if margin is None:
+                continue
+            if task != "file":
+                raise ValueError(f"{name} is for task='file'")
+            if not has_singularity_rules(self.arm):
+                raise ValueError(f"{name}: {self.arm.name} has no singularity rules (OPW "
+                                 "and UR arms have them)")
+            angle = name == "singularity_margin"
+            upper = np.pi / 2 if angle else np.inf
+            if (isinstance(margin, bool) or not isinstance(margin, numbers.Real)
+                    or not 0.0 <= float(margin) < upper):
+                raise ValueError(f"{name} must be a finite number >= 0"
+                                 + (" below π/2 (rad)" if angle else " (m)")
+                                 + f", got {margin!r}")
         self._generator.check_arm(self._task_arm, scene)
         self.n_waypoints = self._waypoint_count(task, n_waypoints)
         draws_scenes = self._scene_seeds(scene, scene_seed, scene_seeds)
@@ -339,7 +364,8 @@ class IKBranchEnv(gym.Env):
         self.pricer = MovePricer(
             self.arm, checker, cost, collision_penalty=collision_penalty,
             invalid_penalty=invalid_penalty, terminate_on_collision=terminate_on_collision,
-            max_joint_step=max_joint_step,
+            max_joint_step=max_joint_step, singularity_margin=singularity_margin,
+            shoulder_margin=shoulder_margin,
         )
         self._observations = ObservationBuilder(
             self.arm, self.lookahead, self.pricer.travel_scale, observation

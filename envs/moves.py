@@ -40,6 +40,7 @@ from numpy.typing import ArrayLike
 from ikbranch_gym.envs.costs import TransitionCost
 from ikbranch_gym.envs.jit import njit
 from ikbranch_gym.envs.kinematics import Arm
+from ikbranch_gym.envs.kinematics.singularities import singularity_margins
 from ikbranch_gym.envs.models import CollisionChecker
 from ikbranch_gym.envs.process import UNKNOWN, Continuity, continuity, move_blocked
 from ikbranch_gym.envs.tasks import Task
@@ -78,7 +79,10 @@ class MovePricer:
 
     ``checker`` decides collisions; ``cost`` prices travel and time; the penalties and
     ``terminate_on_collision`` are the env's; ``max_joint_step`` (rad, ``"auto"`` or None:
-    off) keeps process continuity (``envs/process.py``) in the ladders it makes. Shared by
+    off) keeps process continuity (``envs/process.py``) in the ladders it makes;
+    ``singularity_margin`` (rad: wrist and elbow) and ``shoulder_margin`` (m) leave out of
+    them every branch that close to a singular configuration
+    (``envs.kinematics.singularities``; None: no margin). Shared by
     every :class:`TaskMoves` it makes, so caches survive from task to task.
     """
 
@@ -92,9 +96,12 @@ class MovePricer:
         invalid_penalty: float,
         terminate_on_collision: bool,
         max_joint_step: float | str | None = None,
+        singularity_margin: float | None = None,
+        shoulder_margin: float | None = None,
     ) -> None:
         self.arm, self.checker, self.cost = arm, checker, cost
         self.max_joint_step = max_joint_step
+        self.singularity_margin, self.shoulder_margin = singularity_margin, shoulder_margin
         self.collision_penalty = float(collision_penalty)
         self.invalid_penalty = float(invalid_penalty)
         self.terminate_on_collision = bool(terminate_on_collision)
@@ -166,6 +173,10 @@ class MovePricer:
         candidates, valid, endpoint = self.solve(task.poses)
         if not valid.any(axis=-1).all():
             raise RuntimeError("task generator produced a waypoint without a valid branch")
+        if self.singularity_margin is not None or self.shoulder_margin is not None:
+            clear = self._clear_of_singularities(candidates, valid)
+            candidates = np.where(clear[..., None], candidates, np.nan)
+            valid, endpoint = clear, endpoint & clear
         if self.max_joint_step is None:
             return TaskMoves(self, task, candidates, valid, endpoint)
         arm = self.arm
@@ -175,6 +186,25 @@ class MovePricer:
                                       arm.revolute_mask, self.max_joint_step)
         candidates = np.where(followable[..., None], candidates, np.nan)
         return TaskMoves(self, task, candidates, followable, endpoint & followable, kept)
+
+    def _clear_of_singularities(self, candidates: np.ndarray, valid: np.ndarray) -> np.ndarray:
+        """(N, K): valid branches outside the singularity margins; ``ValueError`` naming
+        every waypoint left without one."""
+        margins = singularity_margins(self.arm, candidates)
+        clear = valid.copy()
+        angle, shoulder = self.singularity_margin, self.shoulder_margin
+        if angle is not None:
+            clear &= (margins.wrist >= angle) & (margins.elbow >= angle)
+        if shoulder is not None:
+            clear &= margins.shoulder >= shoulder
+        stuck = np.flatnonzero(~clear.any(axis=-1))
+        if len(stuck):
+            limits = ", ".join(part for part in (
+                None if angle is None else f"wrist and elbow {np.degrees(angle):g}°",
+                None if shoulder is None else f"shoulder {1000 * shoulder:g} mm") if part)
+            raise ValueError(f"waypoints {stuck.tolist()}: every branch lies within the "
+                             f"singularity margins ({limits})")
+        return clear
 
     # ------------------------------------------------------------------ collisions
     def configurations_collide(self, q: np.ndarray) -> np.ndarray:

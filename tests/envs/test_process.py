@@ -305,3 +305,36 @@ def test_continuity_needs_a_file_task_and_a_limit_below_half_a_turn(spin_file):
         _env(spin_file, task_segments=[1.5])
     with pytest.raises(ValueError, match="segment starts must"):
         _env(spin_file, task_segments=[40])
+
+
+def test_branches_near_a_singularity_are_left_out(spin_file, tmp_path):
+    from ikbranch_gym.envs.kinematics.singularities import singularity_margins
+
+    generated = IKBranchEnv(arm="ur5e", scene="empty", task="random", n_waypoints=6)
+    generated.reset(seed=2)  # a UR5e task whose branches lie at many distances
+    path = write_waypoints(tmp_path / "ur.csv", generated.task.poses)
+    kwargs = {"arm": "ur5e", "scene": "empty", "task": "file", "task_file": str(path)}
+    free = IKBranchEnv(**kwargs)
+    free.reset(seed=0)
+    margin, shoulder = math.radians(20.0), 0.05
+    kept = IKBranchEnv(**kwargs, singularity_margin=margin, shoulder_margin=shoulder)
+    kept.reset(seed=0)
+    margins = singularity_margins(make_arm("ur5e"), free.candidates)
+    with np.errstate(invalid="ignore"):
+        clear = (free.valid & (margins.wrist >= margin) & (margins.elbow >= margin)
+                 & (margins.shoulder >= shoulder))
+    assert 0 < clear.sum() < free.valid.sum() and clear.any(axis=1).all()
+    np.testing.assert_array_equal(kept.valid, clear)
+    assert np.isnan(kept.candidates[~clear]).all()
+    with pytest.raises(ValueError, match=r"every branch lies within the singularity margins "
+                                         r"\(wrist and elbow 60°\)"):
+        _env(spin_file, singularity_margin=math.radians(60.0)).reset(seed=0)
+    with pytest.raises(ValueError, match="singularity_margin is for task='file'"):
+        IKBranchEnv(arm=ARM, scene="empty", singularity_margin=0.1)
+    with pytest.raises(ValueError, match="anthropomorphic has no singularity rules"):
+        IKBranchEnv(arm="anthropomorphic", scene="empty", task="file",
+                    task_file="examples/paper_worked_example.csv", singularity_margin=0.1)
+    with pytest.raises(ValueError, match=r"shoulder_margin must be a finite number >= 0 \(m\)"):
+        _env(spin_file, shoulder_margin=-1.0)
+    with pytest.raises(ValueError, match="below π/2"):
+        _env(spin_file, singularity_margin=2.0)

@@ -419,6 +419,8 @@ BAD_INPUTS = [
     (["--segments", "0,x"], "--segments '0,x': 'x' is not a waypoint index"),
     (["--segments", "1,1"], "segment starts must increase strictly"),
     (["--segments", "2"], "segment starts must be waypoints in [0, 2)"),
+    (["--singularity-margin", "90"], "--singularity-margin must lie in [0, 90) degrees"),
+    (["--shoulder-margin", "-1"], "--shoulder-margin must be a length >= 0 in mm"),
     (["--out", "plan.txt"], "--out plan.txt: the file name must end in .csv"),
     (["--out", "absent/plan.csv"], "folder absent does not exist"),
     (["--out", "paper.csv"], "--out paper.csv would overwrite an input file"),
@@ -628,3 +630,44 @@ def test_an_infeasible_segment_is_reported_not_planned(tmp_path, capsys):
     assert main(["--arm", "kuka_kr6_r700", "--waypoints", str(split), "--out",
                  str(tmp_path / "split_plan.csv")]) == EXIT_OK
     assert rows_of(tmp_path / "split_plan.csv") == rows
+
+
+def test_rows_near_a_singularity_are_flagged_and_can_be_avoided(tmp_path, capsys):
+    """A KR 6 R700 path 2 mm a step from a configuration 2° from its wrist singularity
+    (elbow 17.4° from stretched): the branch through it is flagged; the oracle takes one
+    18° from the wrist singularity; --avoid-singularities leaves the near ones out, and
+    with an 18° margin nothing is left."""
+    arm = make_arm("kuka_kr6_r700")
+    q = arm.joints_from_angles(np.array([0.3, 0.2, 0.4, 0.5, math.radians(2.0), 0.1]))
+    candidates, valid = arm.ik(arm.fk(q))
+    near = int(np.flatnonzero(valid & np.all(np.isclose(candidates, q), axis=1))[0])
+    poses = np.repeat(arm.fk(q)[None], 11, axis=0)
+    poses[:, 1, 3] += 0.002 * np.arange(11)
+    path = write_waypoints(tmp_path / "near.csv", poses)
+    out, record = tmp_path / "plan.csv", tmp_path / "plan.json"
+    args = ["--arm", "kuka_kr6_r700", "--waypoints", str(path), "--out", str(out)]
+    assert main([*args, "--planner", f"fixed:{near}", "--json", str(record)]) == EXIT_OK
+    rows = rows_of(out)
+    assert all(row["near_singularity"] == "wrist" for row in rows)
+    wrist = [float(row["wrist_margin_deg"]) for row in rows]
+    assert 1.0 < min(wrist) and max(wrist) < 5.0
+    data = json.loads(record.read_text())
+    assert data["summary"][f"fixed:{near}"]["near_singularities"] == 11
+    assert data["summary"]["dp_oracle"]["near_singularities"] == 0
+    assert data["inputs"]["process"]["singularity_margin_deg"] == pytest.approx(5.0)
+    step = data["planners"][f"fixed:{near}"]["steps"][0]
+    assert step["near_singularity"] == "wrist"
+    assert math.degrees(step["singularity_margins"]["wrist"]) == pytest.approx(wrist[0])
+    assert main([*args, "--avoid-singularities"]) == EXIT_OK
+    assert all(row["near_singularity"] == "" and float(row["wrist_margin_deg"]) >= 5.0
+               for row in rows_of(out))
+    capsys.readouterr()
+    assert main([*args, "--avoid-singularities", "--singularity-margin", "18"]) == EXIT_INPUT
+    assert "every branch lies within the singularity margins" in capsys.readouterr().err
+    assert main(["--arm", "anthropomorphic", "--waypoints",
+                 str(EXAMPLES / "paper_worked_example.csv"), "--out", str(out),
+                 "--avoid-singularities"]) == EXIT_INPUT
+    assert "anthropomorphic has no singularity rules" in capsys.readouterr().err
+    assert main(["--arm", "anthropomorphic", "--waypoints",
+                 str(EXAMPLES / "paper_worked_example.csv"), "--out", str(out)]) == EXIT_OK
+    assert {row["wrist_margin_deg"] for row in rows_of(out)} == {""}  # no rules: blank

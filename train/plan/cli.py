@@ -59,6 +59,14 @@ def parser() -> argparse.ArgumentParser:
                    help="inside a segment no move may change the configuration or step a "
                         "joint by more than this (degrees; auto: twice the least step the "
                         "hardest segment needs, 10–179; off: no continuity)")
+    p.add_argument("--singularity-margin", type=float, default=5.0, metavar="DEG",
+                   help="flag rows whose wrist or elbow lies this near a singular "
+                        "configuration (degrees, default 5; OPW and UR arms)")
+    p.add_argument("--shoulder-margin", type=float, default=20.0, metavar="MM",
+                   help="flag rows whose wrist point lies this near the shoulder "
+                        "singularity (mm, default 20)")
+    p.add_argument("--avoid-singularities", action="store_true",
+                   help="no planner may take a branch within those margins")
     p.add_argument("--resolution", type=float, default=0.01, metavar="M",
                    help="collision-check clearance and step along paths (m, default 0.01)")
     p.add_argument("--env-kwargs", metavar="JSON",

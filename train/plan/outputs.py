@@ -17,7 +17,7 @@ import numpy as np
 
 from ikbranch_gym.agents.evaluation import ORACLE
 
-from .playing import Plan, PlanRun
+from .playing import Plan, PlanRun, ProcessMove
 
 if TYPE_CHECKING:
     from ikbranch_gym.envs.kinematics import Arm
@@ -43,7 +43,16 @@ def csv_columns(arm: Arm) -> list[str]:
     return (["waypoint", "name", "segment", "branch", "label", "configuration", *names,
              *(f"{n}_{_unit_suffix(k)}" for n, k in zip(names, kinds, strict=True)),
              "travel_rad", "travel_deg", "time_s", "collision", "max_step_deg", "air_move",
-             "reconfiguration", "cumulative_travel_rad", "cumulative_travel_deg"])
+             "reconfiguration", "wrist_margin_deg", "elbow_margin_deg", "shoulder_margin_mm",
+             "near_singularity", "cumulative_travel_rad", "cumulative_travel_deg"])
+
+
+def _margins(move: ProcessMove) -> list[str]:
+    """The CSV's singularity cells of a row: degrees, degrees, mm ("" without rules)."""
+    if move.margins is None:
+        return ["", "", ""]
+    wrist, elbow, shoulder = move.margins
+    return [repr(math.degrees(wrist)), repr(math.degrees(elbow)), repr(1000.0 * shoulder)]
 
 
 def plan_csv(plan: Plan, run: PlanRun | None = None) -> str:
@@ -63,7 +72,8 @@ def plan_csv(plan: Plan, run: PlanRun | None = None) -> str:
             *(repr(v) for v in _display(step.q, arm.joint_types)),
             repr(step.travel), repr(math.degrees(step.travel)), repr(step.time),
             int(step.collision), repr(math.degrees(move.max_step)), int(move.air_move),
-            int(move.reconfiguration), repr(cumulative), repr(math.degrees(cumulative)),
+            int(move.reconfiguration), *_margins(move), move.near_singularities,
+            repr(cumulative), repr(math.degrees(cumulative)),
         ])
     return buffer.getvalue()
 
@@ -82,6 +92,8 @@ def summary(plan: Plan) -> dict[str, dict[str, Any]]:
             "travel_deg": math.degrees(run.travel), "time": run.time,
             "collisions": run.collisions,
             "reconfigurations": sum(move.reconfiguration for move in plan.moves(run)),
+            "near_singularities": sum(bool(move.near_singularities)
+                                      for move in plan.moves(run)),
             "success": run.success, "gap": plan.gap(run),
             "decision_ms": 1e3 * run.decision_seconds / max(len(run.steps), 1),
             "waypoints_reached": len(run.reached), "n_waypoints": run.n_waypoints,
@@ -152,7 +164,7 @@ def plan_json(plan: Plan, argv: Sequence[str] | None = None) -> dict[str, Any]:
         steps = []
         moves = iter(plan.moves(run))
         for step in run.steps:
-            entry = {
+            entry: dict[str, Any] = {
                 "waypoint": step.waypoint, "name": plan.names[step.waypoint],
                 "branch": step.branch, "label": step.label,
                 "q": None if step.invalid else [float(v) for v in step.q],
@@ -167,7 +179,11 @@ def plan_json(plan: Plan, argv: Sequence[str] | None = None) -> dict[str, Any]:
                 entry["fk_residual"] = float(np.abs(fk - plan.targets[step.waypoint]).max())
                 move = next(moves)
                 entry.update(configuration=move.configuration, max_step=move.max_step,
-                             air_move=move.air_move, reconfiguration=move.reconfiguration)
+                             air_move=move.air_move, reconfiguration=move.reconfiguration,
+                             singularity_margins=None if move.margins is None else dict(
+                                 zip(("wrist", "elbow", "shoulder"), move.margins,
+                                     strict=True)),
+                             near_singularity=move.near_singularities)
             steps.append(entry)
         planners[key] = {"spec": run.spec, "steps": steps}
     return {
@@ -215,4 +231,8 @@ def _process_record(plan: Plan) -> dict[str, Any]:
         "max_joint_step": plan.limit, "max_joint_step_deg": math.degrees(plan.limit),
         "derived": None if kept is None else kept.derived,
         "segment_needs": None if kept is None else [float(v) for v in kept.needed],
+        "singularity_margin": plan.singularity_margin,
+        "singularity_margin_deg": math.degrees(plan.singularity_margin),
+        "shoulder_margin": plan.shoulder_margin,
+        "singularities_avoided": plan.singularities_avoided,
     }

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ikbranch_gym.agents.evaluation import ORACLE, run_episode
+from ikbranch_gym.envs.kinematics.singularities import has_singularity_rules, singularity_margins
 from ikbranch_gym.envs.process import MAX_LIMIT, largest_steps, segment_index
 
 from .request import PlanRequest, make_env
@@ -133,13 +134,18 @@ class ProcessMove:
     stands in (the closed-form branch label, turns aside), the move's largest revolute
     joint step (rad; 0 for a free start's first row), whether it is an ``air_move`` (into
     the first waypoint or a new segment) and whether it reconfigures the arm (a new
-    configuration, or a step beyond the plan's limit)."""
+    configuration, or a step beyond the plan's limit); for arms with singularity rules the
+    configuration's ``margins`` (wrist, elbow: rad; shoulder: m;
+    ``envs.kinematics.singularities``) and ``near_singularities``, the names of those
+    within the plan's margins ("" for none)."""
 
     segment: int
     configuration: str
     max_step: float
     air_move: bool
     reconfiguration: bool
+    margins: tuple[float, float, float] | None = None
+    near_singularities: str = ""
 
 
 @dataclass
@@ -164,6 +170,11 @@ class Plan:
     #: the ladder's ``envs.process.Continuity`` (None: off).
     limit: float
     continuity: Any = None
+    #: The margins rows are flagged within (rad: wrist and elbow; m: shoulder), and whether
+    #: the planners were kept outside them (``--avoid-singularities``).
+    singularity_margin: float = 0.0
+    shoulder_margin: float = 0.0
+    singularities_avoided: bool = False
     scene: Any = None  # the SceneFile, if any
     tool: Any = None  # the Tool, if any
 
@@ -188,9 +199,17 @@ class Plan:
                 largest = float(largest_steps(before, step.q, arm.revolute_mask))
                 changed = largest > self.limit or (
                     previous is not None and closed[previous.branch] != closed[step.branch])
+            margins, near = None, ""
+            if has_singularity_rules(arm):
+                found = singularity_margins(arm, step.q)
+                margins = (float(found.wrist), float(found.elbow), float(found.shoulder))
+                near = "+".join(name for name, value, bound in zip(
+                    ("wrist", "elbow", "shoulder"), margins,
+                    (self.singularity_margin, self.singularity_margin, self.shoulder_margin),
+                    strict=True) if value < bound)
             out.append(ProcessMove(int(self.segments[step.waypoint]),
                                    labels[closed[step.branch]], largest, bool(air),
-                                   bool(changed)))
+                                   bool(changed), margins, near))
             previous = step
         return out
 
@@ -251,5 +270,7 @@ def plan(request: PlanRequest) -> Plan:
         file_poses=np.array(waypoints.poses), targets=np.array(task.poses),
         start=np.array(task.start), free_start=bool(task.free_start), model=base.model,
         segments=segments, limit=MAX_LIMIT if kept is None else kept.limit, continuity=kept,
+        singularity_margin=request.singularity_margin, shoulder_margin=request.shoulder_margin,
+        singularities_avoided=request.avoid_singularities,
         scene=base.scene_file, tool=base.tool,
     )

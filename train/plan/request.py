@@ -27,8 +27,8 @@ PLANNERS = tuple(BASELINES)
 #: fixed by the command).
 RESERVED_ENV_KWARGS = ("arm", "arm_params", "scene", "scene_file", "scene_options", "task",
                        "task_file", "task_start", "task_points_abc", "task_segments",
-                       "max_joint_step", "tool", "collision_resolution", "n_waypoints",
-                       "render_mode", "width", "height")
+                       "max_joint_step", "singularity_margin", "shoulder_margin", "tool",
+                       "collision_resolution", "n_waypoints", "render_mode", "width", "height")
 
 
 class PlanInputError(ValueError):
@@ -57,6 +57,11 @@ class PlanRequest:
     #: first waypoints of the segments (None: the file's own).
     max_joint_step: float | str | None = "auto"
     segments: tuple[int, ...] | None = None
+    #: Rows this near a singular configuration are flagged (rad: wrist and elbow; m:
+    #: shoulder); with ``avoid_singularities`` no planner may take such a branch.
+    singularity_margin: float = math.radians(5.0)
+    shoulder_margin: float = 0.02
+    avoid_singularities: bool = False
 
     def make_kwargs(self) -> dict[str, Any]:
         """The :class:`~envs.ik_branch_env.IKBranchEnv` arguments (JSON-able)."""
@@ -72,6 +77,9 @@ class PlanRequest:
             "task_segments": None if self.segments is None else list(self.segments),
             "max_joint_step": self.max_joint_step,
         }
+        if self.avoid_singularities:
+            kwargs["singularity_margin"] = self.singularity_margin
+            kwargs["shoulder_margin"] = self.shoulder_margin
         return {**kwargs, **self.env_kwargs}
 
 
@@ -267,6 +275,22 @@ def _planner(spec: str) -> str:
     return spec
 
 
+def _check_singularity_options(args: argparse.Namespace, arm: Arm) -> None:
+    """``--singularity-margin``, ``--shoulder-margin``, ``--avoid-singularities``."""
+    if not (math.isfinite(args.singularity_margin) and 0.0 <= args.singularity_margin < 90.0):
+        raise PlanInputError(f"--singularity-margin must lie in [0, 90) degrees, got "
+                             f"{args.singularity_margin!r}")
+    if not (math.isfinite(args.shoulder_margin) and args.shoulder_margin >= 0.0):
+        raise PlanInputError(f"--shoulder-margin must be a length >= 0 in mm, got "
+                             f"{args.shoulder_margin!r}")
+    if args.avoid_singularities:
+        from ikbranch_gym.envs.kinematics.singularities import has_singularity_rules
+
+        if not has_singularity_rules(arm):
+            raise PlanInputError(f"--avoid-singularities: {arm.name} has no singularity rules "
+                                 "(OPW and UR arms have them)")
+
+
 def request_from_args(args: argparse.Namespace) -> PlanRequest:
     """Check the command line (``PlanInputError`` naming the option) into a request."""
     from ikbranch_gym.envs.kinematics import make_arm
@@ -313,7 +337,11 @@ def request_from_args(args: argparse.Namespace) -> PlanRequest:
                              "--scene, --scene-options, --tool, --start and --resolution")
     if args.points_abc is not None and any(not math.isfinite(v) for v in args.points_abc):
         raise PlanInputError(f"--points-abc must be finite lengths in mm, got {args.points_abc}")
+    _check_singularity_options(args, arm)
     return PlanRequest(
+        singularity_margin=math.radians(args.singularity_margin),
+        shoulder_margin=args.shoulder_margin / 1000.0,
+        avoid_singularities=bool(args.avoid_singularities),
         max_joint_step=parse_max_joint_step(args.max_joint_step),
         segments=parse_segments(args.segments),
         arm=args.arm, waypoints=waypoints, arm_params=arm_params,
