@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -227,3 +227,71 @@ def continuity(candidates: np.ndarray, valid: np.ndarray, segments: np.ndarray,
             f"{why}")
     alive = followable(candidates, valid, inside, configuration, limit, revolute)
     return Continuity(segments, inside, limit, derived, needed), alive
+
+
+#: Samples of a joint-space move for :func:`line_deviation`: one per this much of its
+#: largest revolute step (rad) or prismatic step (m), at least ``LINE_SAMPLES``.
+LINE_ANGLE_STEP = math.radians(0.25)
+LINE_LENGTH_STEP = 0.0005
+LINE_SAMPLES = 16
+
+
+def line_deviation(fk: Callable[[np.ndarray], np.ndarray], q0: np.ndarray, q1: np.ndarray,
+                   revolute: np.ndarray, tcp: np.ndarray | None = None) -> tuple[float, float]:
+    """How far the TCP leaves the straight line while the joints move linearly q0 → q1:
+    the largest distance (m) of the TCP from the segment between its two end positions,
+    and the largest angle (rad) between its orientation and the orientation a linear
+    (LIN) move would have at the same point of the line (the slerp of the two end
+    orientations at the TCP's projection onto the segment; for a move without
+    translation, under 1 µm, at the same fraction of the joint move). Sampled (``LINE_ANGLE_STEP``,
+    ``LINE_LENGTH_STEP``, ends included): a lower bound of the true maxima, tight to the
+    sampling. ``fk`` maps (M, dof) to (M, 4, 4) poses; ``tcp`` (4, 4) the TCP in its frame."""
+    q0, q1 = np.asarray(q0, dtype=np.float64), np.asarray(q1, dtype=np.float64)
+    delta = np.abs(q1 - q0)
+    angle = float(delta[revolute].max(initial=0.0))
+    length = float(delta[~revolute].max(initial=0.0))
+    count = max(LINE_SAMPLES, math.ceil(angle / LINE_ANGLE_STEP),
+                math.ceil(length / LINE_LENGTH_STEP))
+    t = np.linspace(0.0, 1.0, count + 1)
+    poses = fk(q0 + t[:, None] * (q1 - q0))
+    if tcp is not None:
+        poses = poses @ tcp
+    points, rotations = poses[:, :3, 3], poses[:, :3, :3]
+    start, chord = points[0], points[-1] - points[0]
+    span = float(chord @ chord)
+    # A chord under a micrometre is a move without translation: the joint fraction then.
+    along = np.clip((points - start) @ chord / span, 0.0, 1.0) if span > 1e-12 else t
+    off = points - (start + along[:, None] * chord)
+    distance = float(np.sqrt((off * off).sum(axis=1)).max())
+    expected = _slerp(rotations[0], rotations[-1], along)
+    relative = np.einsum("nji,njk->nik", expected, rotations)
+    # The angle of each relative rotation as atan2(sin, cos): arccos of the trace alone
+    # loses half the digits near zero (1e-8 rad from rounding).
+    sine = 0.5 * np.linalg.norm(np.stack([relative[:, 2, 1] - relative[:, 1, 2],
+                                          relative[:, 0, 2] - relative[:, 2, 0],
+                                          relative[:, 1, 0] - relative[:, 0, 1]], -1), axis=-1)
+    cosine = (np.trace(relative, axis1=1, axis2=2) - 1.0) / 2.0
+    return distance, float(np.arctan2(sine, cosine).max())
+
+
+def _slerp(r0: np.ndarray, r1: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """(len(s), 3, 3): the rotations from ``r0`` to ``r1`` about their fixed axis, the
+    fraction ``s`` of the way (the shorter way)."""
+    relative = r0.T @ r1
+    cosine = np.clip((np.trace(relative) - 1.0) / 2.0, -1.0, 1.0)
+    theta = math.acos(cosine)
+    if theta < 1e-12:
+        return np.broadcast_to(r0, (len(s), 3, 3)).copy()
+    if math.pi - theta < 1e-6:  # a half turn, R = 2uuᵀ − I: u from (R + I)/2 = uuᵀ
+        outer = (relative + relative.T) / 4.0 + np.eye(3) / 2.0
+        k = int(np.argmax(np.diag(outer)))
+        axis = outer[:, k] / math.sqrt(outer[k, k])
+    else:
+        axis = np.array([relative[2, 1] - relative[1, 2], relative[0, 2] - relative[2, 0],
+                         relative[1, 0] - relative[0, 1]]) / (2.0 * math.sin(theta))
+    skew = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]],
+                     [-axis[1], axis[0], 0.0]])
+    angles = theta * np.asarray(s)
+    turns = (np.eye(3) + np.sin(angles)[:, None, None] * skew
+             + (1.0 - np.cos(angles))[:, None, None] * (skew @ skew))  # Rodrigues
+    return r0 @ turns

@@ -338,3 +338,39 @@ def test_branches_near_a_singularity_are_left_out(spin_file, tmp_path):
         _env(spin_file, shoulder_margin=-1.0)
     with pytest.raises(ValueError, match="below π/2"):
         _env(spin_file, singularity_margin=2.0)
+
+
+# --------------------------------------------------------------------- leaving the line
+def test_a_j1_move_leaves_the_line_by_its_arcs_sagitta():
+    from ikbranch_gym.envs.process import line_deviation
+
+    arm = make_arm(ARM)
+    q0 = np.array([0.0, -1.2, 1.6, 0.0, 1.0, 0.0])
+    turn = 0.3
+    q1 = q0 + np.array([turn, 0, 0, 0, 0, 0])
+    flange = arm.fk(q0)[:3, 3]
+    radius = math.hypot(flange[0], flange[1])  # the flange circles the j1 axis
+    distance, rotation = line_deviation(arm.fk, q0, q1, arm.revolute_mask)
+    sagitta = radius * (1 - math.cos(turn / 2))
+    # Sampled every 0.25° of the turn (69 intervals): the nearest sample to the middle lies
+    # at most half an interval off, where the arc is lower by a relative ≈ (2·δt)² = 2.1e-4.
+    assert 0.0 <= sagitta - distance <= 2.2e-4 * sagitta
+    # Its orientation turns about z at the rate the joint does; a linear move at the same
+    # point of the chord has turned by the chord's fraction: equal at the middle and ends.
+    assert rotation < 1e-3
+    tcp = np.eye(4)
+    tcp[:3, 3] = (0.0, 0.0, 0.2)  # a TCP 0.2 m along the flange's z axis
+    spin = q0 + np.array([0, 0, 0, 0, 0, 1.0])  # j6 turns the tool about that axis
+    distance, rotation = line_deviation(arm.fk, q0, spin, arm.revolute_mask, tcp)
+    assert distance < 1e-12 and rotation < 1e-9
+
+
+def test_slerp_turns_about_the_fixed_axis_also_at_half_a_turn():
+    from ikbranch_gym.envs.kinematics.rotations import rot_x, rot_z
+    from ikbranch_gym.envs.process import _slerp
+
+    start = rot_z(0.2)
+    for angle in (1.0, math.pi):
+        turned = _slerp(start, start @ rot_x(angle), np.array([0.0, 0.3, 1.0]))
+        for got, fraction in zip(turned, (0.0, 0.3, 1.0), strict=True):
+            np.testing.assert_allclose(got, start @ rot_x(angle * fraction), atol=1e-12)

@@ -267,6 +267,15 @@ def test_render_frames_the_arm_not_the_cell():
 
 def test_welding_example_plans_through_the_decomposed_fixture(cell, capsys):
     assert main(args_of(WELDING)) == EXIT_OK
+    # Moved in joint space the torch's TCP leaves the straight line 0.53 mm between seam
+    # points 60 mm apart, 1.05–1.07 mm on the 80 mm approach and retreat: those two are
+    # flagged beyond the default 1 mm, with a warning.
+    err = capsys.readouterr().err
+    assert "2 moves inside process segments leave the straight line by more than 1 mm" in err
+    rows = rows_of(cell / "weld.csv")
+    assert [row["off_line"] for row in rows] == ["", "1", *["0"] * 6, "1"]
+    seam = [float(row["line_deviation_mm"]) for row in rows[2:8]]
+    assert 0.5 < min(seam) and max(seam) < 0.55
     record = json.loads((cell / "weld.json").read_text())
     summary = record["summary"]
     assert summary["dp_oracle"]["success"] and summary["dp_oracle"]["collisions"] == 0
@@ -421,6 +430,7 @@ BAD_INPUTS = [
     (["--segments", "2"], "segment starts must be waypoints in [0, 2)"),
     (["--singularity-margin", "90"], "--singularity-margin must lie in [0, 90) degrees"),
     (["--shoulder-margin", "-1"], "--shoulder-margin must be a length >= 0 in mm"),
+    (["--line-tolerance", "nan"], "--line-tolerance must be a length >= 0 in mm"),
     (["--out", "plan.txt"], "--out plan.txt: the file name must end in .csv"),
     (["--out", "absent/plan.csv"], "folder absent does not exist"),
     (["--out", "paper.csv"], "--out paper.csv would overwrite an input file"),
@@ -575,6 +585,9 @@ def test_deburring_example_keeps_the_configuration_with_every_planner(cell, caps
         assert np.abs(np.diff(q, axis=0)).max() <= limit  # every step within the limit
         assert [step["air_move"] for step in steps] == [True] + [False] * 61
     assert math.degrees(-optimum) == pytest.approx(190.97, abs=0.005)
+    rows = rows_of(cell / "deburr.csv")  # 10 mm steps follow the line within 0.03 mm
+    assert rows[0]["line_deviation_mm"] == "" and all(row["off_line"] == "0" for row in rows[1:])
+    assert max(float(row["line_deviation_mm"]) for row in rows[1:]) < 0.03
     # Without continuity the learned policy flips the wrist inside the job: flagged.
     capsys.readouterr()
     assert main([*args, "--max-joint-step", "off"]) == EXIT_OK

@@ -16,7 +16,7 @@ from ikbranch_gym.envs.files import write_all_atomically
 from . import __doc__ as DESCRIPTION
 from .animation import animation_frames, gif_bytes, render_frames
 from .outputs import plan_csv, plan_json, summary_table
-from .playing import plan
+from .playing import Plan, plan
 from .request import PLANNERS, PlanInputError, output_paths, request_from_args
 
 if TYPE_CHECKING:
@@ -67,6 +67,9 @@ def parser() -> argparse.ArgumentParser:
                         "singularity (mm, default 20)")
     p.add_argument("--avoid-singularities", action="store_true",
                    help="no planner may take a branch within those margins")
+    p.add_argument("--line-tolerance", type=float, default=1.0, metavar="MM",
+                   help="flag moves inside a segment whose TCP leaves the straight line by "
+                        "more than this (mm, default 1)")
     p.add_argument("--resolution", type=float, default=0.01, metavar="M",
                    help="collision-check clearance and step along paths (m, default 0.01)")
     p.add_argument("--env-kwargs", metavar="JSON",
@@ -103,6 +106,20 @@ def _join_negative_start(argv: list[str]) -> list[str]:
 def _fail(message: str) -> int:
     print(f"ikbranch plan: error: {message}", file=sys.stderr)
     return EXIT_INPUT
+
+
+def _warn_off_line(result: Plan) -> None:
+    """A warning on stderr naming the chosen plan's moves that leave the straight line."""
+    chosen = result.chosen_run
+    off_line = [(step.waypoint, move.line_deviation or 0.0) for step, move in
+                zip(chosen.reached, result.moves(chosen), strict=True) if move.off_line]
+    if off_line:
+        waypoint, worst = max(off_line, key=lambda item: item[1])
+        print(f"ikbranch plan: warning: {len(off_line)} moves inside process segments leave "
+              f"the straight line by more than {1000 * result.line_tolerance:g} mm (the most, "
+              f"{1000 * worst:.2f} mm, into waypoint {waypoint}): moved in joint space, as "
+              "the plan is checked, the tool does not follow the line there; add points, or "
+              "check the line moves on the controller", file=sys.stderr)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -149,6 +166,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(f"\n* {chosen.name}: {len(chosen.reached)} of {chosen.n_waypoints} waypoints, "
           f"travel {math.degrees(chosen.travel):.2f}°, written to "
           + ", ".join(str(path) for path in files))
+    _warn_off_line(result)
     if not chosen.success:
         optimum = result.optimum
         note = "" if optimum.success else (

@@ -44,7 +44,16 @@ def csv_columns(arm: Arm) -> list[str]:
              *(f"{n}_{_unit_suffix(k)}" for n, k in zip(names, kinds, strict=True)),
              "travel_rad", "travel_deg", "time_s", "collision", "max_step_deg", "air_move",
              "reconfiguration", "wrist_margin_deg", "elbow_margin_deg", "shoulder_margin_mm",
-             "near_singularity", "cumulative_travel_rad", "cumulative_travel_deg"])
+             "near_singularity", "line_deviation_mm", "line_rotation_deg", "off_line",
+             "cumulative_travel_rad", "cumulative_travel_deg"])
+
+
+def _line(move: ProcessMove) -> list[str]:
+    """The CSV's line cells of a row: mm, degrees, 0/1 (blank for an air move)."""
+    if move.line_deviation is None or move.line_rotation is None:
+        return ["", "", ""]
+    return [repr(1000.0 * move.line_deviation), repr(math.degrees(move.line_rotation)),
+            str(int(move.off_line))]
 
 
 def _margins(move: ProcessMove) -> list[str]:
@@ -73,6 +82,7 @@ def plan_csv(plan: Plan, run: PlanRun | None = None) -> str:
             repr(step.travel), repr(math.degrees(step.travel)), repr(step.time),
             int(step.collision), repr(math.degrees(move.max_step)), int(move.air_move),
             int(move.reconfiguration), *_margins(move), move.near_singularities,
+            *_line(move),
             repr(cumulative), repr(math.degrees(cumulative)),
         ])
     return buffer.getvalue()
@@ -94,6 +104,7 @@ def summary(plan: Plan) -> dict[str, dict[str, Any]]:
             "reconfigurations": sum(move.reconfiguration for move in plan.moves(run)),
             "near_singularities": sum(bool(move.near_singularities)
                                       for move in plan.moves(run)),
+            "off_line": sum(move.off_line for move in plan.moves(run)),
             "success": run.success, "gap": plan.gap(run),
             "decision_ms": 1e3 * run.decision_seconds / max(len(run.steps), 1),
             "waypoints_reached": len(run.reached), "n_waypoints": run.n_waypoints,
@@ -183,7 +194,9 @@ def plan_json(plan: Plan, argv: Sequence[str] | None = None) -> dict[str, Any]:
                              singularity_margins=None if move.margins is None else dict(
                                  zip(("wrist", "elbow", "shoulder"), move.margins,
                                      strict=True)),
-                             near_singularity=move.near_singularities)
+                             near_singularity=move.near_singularities,
+                             line_deviation=move.line_deviation,
+                             line_rotation=move.line_rotation, off_line=move.off_line)
             steps.append(entry)
         planners[key] = {"spec": run.spec, "steps": steps}
     return {
@@ -235,4 +248,5 @@ def _process_record(plan: Plan) -> dict[str, Any]:
         "singularity_margin_deg": math.degrees(plan.singularity_margin),
         "shoulder_margin": plan.shoulder_margin,
         "singularities_avoided": plan.singularities_avoided,
+        "line_tolerance": plan.line_tolerance,
     }

@@ -10,7 +10,7 @@ import numpy as np
 
 from ikbranch_gym.agents.evaluation import ORACLE, run_episode
 from ikbranch_gym.envs.kinematics.singularities import has_singularity_rules, singularity_margins
-from ikbranch_gym.envs.process import MAX_LIMIT, largest_steps, segment_index
+from ikbranch_gym.envs.process import MAX_LIMIT, largest_steps, line_deviation, segment_index
 
 from .request import PlanRequest, make_env
 
@@ -137,7 +137,10 @@ class ProcessMove:
     configuration, or a step beyond the plan's limit); for arms with singularity rules the
     configuration's ``margins`` (wrist, elbow: rad; shoulder: m;
     ``envs.kinematics.singularities``) and ``near_singularities``, the names of those
-    within the plan's margins ("" for none)."""
+    within the plan's margins ("" for none); for a move inside a segment, how far the TCP
+    leaves the straight line between its ends (``line_deviation``, m) and the orientation
+    a linear move would have (``line_rotation``, rad; ``envs.process.line_deviation``),
+    and whether it leaves it by more than the plan's tolerance (``off_line``)."""
 
     segment: int
     configuration: str
@@ -146,6 +149,9 @@ class ProcessMove:
     reconfiguration: bool
     margins: tuple[float, float, float] | None = None
     near_singularities: str = ""
+    line_deviation: float | None = None
+    line_rotation: float | None = None
+    off_line: bool = False
 
 
 @dataclass
@@ -175,6 +181,8 @@ class Plan:
     singularity_margin: float = 0.0
     shoulder_margin: float = 0.0
     singularities_avoided: bool = False
+    #: A move inside a segment whose TCP leaves the line by more than this (m) is flagged.
+    line_tolerance: float = 0.001
     scene: Any = None  # the SceneFile, if any
     tool: Any = None  # the Tool, if any
 
@@ -207,9 +215,15 @@ class Plan:
                     ("wrist", "elbow", "shoulder"), margins,
                     (self.singularity_margin, self.singularity_margin, self.shoulder_margin),
                     strict=True) if value < bound)
+            deviation = rotation = None
+            if not air and previous is not None:
+                deviation, rotation = line_deviation(
+                    arm.fk, previous.q, step.q, arm.revolute_mask,
+                    None if self.tool is None else self.tool.tcp)
             out.append(ProcessMove(int(self.segments[step.waypoint]),
                                    labels[closed[step.branch]], largest, bool(air),
-                                   bool(changed), margins, near))
+                                   bool(changed), margins, near, deviation, rotation,
+                                   deviation is not None and deviation > self.line_tolerance))
             previous = step
         return out
 
@@ -271,6 +285,6 @@ def plan(request: PlanRequest) -> Plan:
         start=np.array(task.start), free_start=bool(task.free_start), model=base.model,
         segments=segments, limit=MAX_LIMIT if kept is None else kept.limit, continuity=kept,
         singularity_margin=request.singularity_margin, shoulder_margin=request.shoulder_margin,
-        singularities_avoided=request.avoid_singularities,
+        singularities_avoided=request.avoid_singularities, line_tolerance=request.line_tolerance,
         scene=base.scene_file, tool=base.tool,
     )

@@ -62,6 +62,9 @@ class PlanRequest:
     singularity_margin: float = math.radians(5.0)
     shoulder_margin: float = 0.02
     avoid_singularities: bool = False
+    #: Moves inside a segment whose TCP leaves the straight line by more than this (m)
+    #: are flagged.
+    line_tolerance: float = 0.001
 
     def make_kwargs(self) -> dict[str, Any]:
         """The :class:`~envs.ik_branch_env.IKBranchEnv` arguments (JSON-able)."""
@@ -338,7 +341,11 @@ def request_from_args(args: argparse.Namespace) -> PlanRequest:
     if args.points_abc is not None and any(not math.isfinite(v) for v in args.points_abc):
         raise PlanInputError(f"--points-abc must be finite lengths in mm, got {args.points_abc}")
     _check_singularity_options(args, arm)
+    if not (math.isfinite(args.line_tolerance) and args.line_tolerance >= 0.0):
+        raise PlanInputError(f"--line-tolerance must be a length >= 0 in mm, got "
+                             f"{args.line_tolerance!r}")
     return PlanRequest(
+        line_tolerance=args.line_tolerance / 1000.0,
         singularity_margin=math.radians(args.singularity_margin),
         shoulder_margin=args.shoulder_margin / 1000.0,
         avoid_singularities=bool(args.avoid_singularities),
