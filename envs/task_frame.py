@@ -69,3 +69,6 @@ class FramedArm:
 
     def reaches(self, pose: ArrayLike) -> np.ndarray:
         return self.arm.reaches(self.frame.to_fk(pose))
+
+    def limit_overshoot(self, pose: ArrayLike) -> tuple[int, int, float, float] | None:
+        return self.arm.limit_overshoot(self.frame.to_fk(pose))

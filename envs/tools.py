@@ -48,6 +48,11 @@ SHAPES = ("cylinder", "box", "mesh")
 SOLID_KEYS = ("shape", "size", "mesh", "offset")
 
 
+#: No tool frame lies farther than this (m) from the flange: a larger one was most likely
+#: written in millimetres.
+MAX_TOOL_LENGTH = 5.0
+
+
 def _frame(spec: Any, label: str) -> np.ndarray:
     """(4, 4) from ``{"pos": [3], "quat": [4] | "rpy": [3]}`` (None: identity)."""
     pose = np.eye(4)
@@ -60,6 +65,10 @@ def _frame(spec: Any, label: str) -> np.ndarray:
         raise ValueError(f"{label}: give 'quat' or 'rpy', not both")
     if "pos" in spec:
         pose[:3, 3] = _numbers(spec["pos"], 3, f"{label}.pos")
+        if np.abs(pose[:3, 3]).max() > MAX_TOOL_LENGTH:
+            raise ValueError(f"{label}.pos {list(spec['pos'])} lies more than "
+                             f"{MAX_TOOL_LENGTH:g} m from the flange: is it in millimetres? "
+                             "Tool files give metres")
     if "quat" in spec:
         w, x, y, z = _numbers(spec["quat"], 4, f"{label}.quat")
         norm = math.sqrt(w * w + x * x + y * y + z * z)
@@ -128,6 +137,10 @@ class ToolPart:
             size = _numbers(spec.get("size"), count, f"{label} size")
             if min(size) <= 0:
                 raise ValueError(f"{label} size must be positive, got {list(size)}")
+            if max(size) > MAX_TOOL_LENGTH:
+                raise ValueError(f"{label} size {list(size)} is more than "
+                                 f"{MAX_TOOL_LENGTH:g} m: is it in millimetres? Tool files "
+                                 "give metres")
         return cls(shape, size, _frame(spec.get("offset"), f"{label} offset"), mesh)
 
 

@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from functools import cached_property
 from itertools import product
 from typing import Any, ClassVar
@@ -245,6 +245,41 @@ class Arm(ABC):
         limits aside: where ``ik`` finds no valid branch, this tells "out of reach" (False)
         from "outside the joint limits" (True)."""
         return self._solve(pose)[2]
+
+    def limit_overshoot(self, pose: ArrayLike) -> tuple[int, int, float, float] | None:
+        """Why no branch reaches ``pose`` (4, 4) inside the limits when some would outside
+        them: (closed-form branch, joint, its value, the limit it passes) of the
+        closed-form solution nearest to the limits (the least, over branches, of the
+        largest overshoot over joints; every turn of a revolute joint considered). None
+        when the pose is out of reach or some branch lies inside the limits."""
+        if self.ik(pose)[1].any() or not self.reaches(pose):
+            return None
+        q, ok = self._without_limits.ik(pose)
+        lower, upper = self.joint_limits[:, 0], self.joint_limits[:, 1]
+        nearest: tuple[float, int, int, float, float] | None = None
+        for branch in np.flatnonzero(ok):
+            worst: tuple[float, int, int, float, float] | None = None
+            for joint in range(self.dof):
+                value = float(q[branch, joint])
+                if self.joint_types[joint] == REVOLUTE:  # the turn nearest the limits
+                    turns = value + TWO_PI * np.arange(-3, 4)
+                    excess = np.maximum(lower[joint] - turns, turns - upper[joint])
+                    value = float(turns[int(np.argmin(excess))])
+                over = max(float(lower[joint]) - value, value - float(upper[joint]))
+                bound = float(lower[joint] if value < lower[joint] else upper[joint])
+                if worst is None or over > worst[0]:
+                    worst = (over, int(branch), joint, value, bound)
+            if worst is not None and (nearest is None or worst[0] < nearest[0]):
+                nearest = worst
+        return None if nearest is None else nearest[1:]
+
+    @cached_property
+    def _without_limits(self) -> Arm:
+        """This arm with every revolute joint free over a full turn and every prismatic one
+        over ±1 km: its branches are the closed-form ones, whatever the limits."""
+        wide = np.where(self.revolute_mask[:, None], [[-np.pi, np.pi]], [[-1e3, 1e3]])
+        home = np.clip(self.home, wide[:, 0], wide[:, 1])
+        return replace(self, joint_limits=wide, home=home)
 
     def within_limits(self, q: ArrayLike) -> np.ndarray:
         """(…,) bool: every joint of ``q`` (…, dof) inside its limits (with ``LIMIT_TOL``)."""

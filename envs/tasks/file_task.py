@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ikbranch_gym.envs.kinematics import Arm
@@ -55,5 +57,38 @@ class FileTask:
             return []
         exists = arm.reaches(self.poses[rows])
         return [str(self.waypoints.row_error(
-            int(row), "every branch lies outside the joint limits" if inside else
-            "out of reach (no branch exists)")) for row, inside in zip(rows, exists, strict=True)]
+            int(row), _outside_limits(arm, self.poses[row]) if inside else
+            _out_of_reach(self.poses[row]))) for row, inside in zip(rows, exists, strict=True)]
+
+
+#: A waypoint farther than this (m) from the task frame's origin is no arm's: its file was
+#: most likely written in millimetres.
+MM_HINT_DISTANCE = 10.0
+
+
+def _out_of_reach(pose: np.ndarray) -> str:
+    problem = "out of reach (no branch exists)"
+    position = pose[:3, 3]
+    if np.abs(position).max() > MM_HINT_DISTANCE:
+        shown = ", ".join(f"{v:g}" for v in position)
+        problem += (f"; its position ({shown}) lies more than {MM_HINT_DISTANCE:g} m away: "
+                    "is the file in millimetres? Waypoint files give metres (only the "
+                    "four-point format is in mm)")
+    return problem
+
+
+def _outside_limits(arm: Arm, pose: np.ndarray) -> str:
+    """The problem of a pose some branch reaches outside the joint limits only: which
+    joint of the nearest branch passes which limit, by how much."""
+    problem = "every branch lies outside the joint limits"
+    found = arm.limit_overshoot(pose)
+    if found is None:
+        return problem
+    branch, joint, value, bound = found
+    name, label = arm.joint_names[joint], arm.closed_form_labels[branch]
+    if arm.joint_types[joint] == "prismatic":
+        unit, scale = " mm", 1000.0
+    else:
+        unit, scale = "°", math.degrees(1.0)
+    return (f"{problem}: the nearest, {label}, needs {name} = {value * scale:.2f}{unit}, "
+            f"{abs(value - bound) * scale:.2f}{unit} beyond its limit {bound * scale:.2f}{unit}")

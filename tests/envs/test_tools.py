@@ -39,6 +39,12 @@ TORCH = {"shape": "cylinder", "size": [0.02, 0.3],
      r"tool parts\[1\] must be a dict"),
     ({"parts": [{"shape": "mesh", "mesh": 3}]}, r"parts\[0\] mesh must be the path"),
     ({"parts": [{"shape": "box", "size": [0.1, 0.1, 0.1]}], "colour": "red"}, "unknown keys"),
+    ({"shape": "cylinder", "size": [25, 350]},
+     r"size \[25\.0, 350\.0\] is more than 5 m: is it in millimetres"),
+    ({"shape": "cylinder", "size": [0.025, 0.35], "tcp": {"pos": [0, 0, 370]}},
+     r"tool tcp\.pos \[0, 0, 370\] lies more than 5 m from the flange: is it in millimetres"),
+    ({"parts": [{"shape": "box", "size": [0.1, 0.1, 0.1], "offset": {"pos": [0, 0, 200]}}]},
+     r"offset\.pos \[0, 0, 200\] lies more than 5 m"),
 ])
 def test_malformed_tools_are_refused(spec, match):
     with pytest.raises(ValueError, match=match):

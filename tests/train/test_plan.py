@@ -422,6 +422,12 @@ BAD_INPUTS = [
     (["--env-kwargs", '{"lookahed": 1}'], "--env-kwargs: unknown arguments ['lookahed']"),
     (["--tool", '{"shape": "mesh", "mesh": 5}'], "--tool: mesh must be the path of an STL/OBJ"),
     (["--resolution", "0"], "--resolution must be a positive length"),
+    (["--waypoints", "beyond_limits.csv", "--arm", "kuka_kr6_r700"],
+     "line 3: every branch lies outside the joint limits: the nearest, "
+     "front/elbow-up/wrist+, needs j5 = 125.00°, 5.00° beyond its limit 120.00°"),
+    (["--waypoints", "millimetres.csv", "--arm", "kuka_kr6_r700"],
+     "line 2: out of reach (no branch exists); its position (373.386, -114.229, 542.244) "
+     "lies more than 10 m away: is the file in millimetres?"),
     (["--max-joint-step", "180"], "--max-joint-step '180': must lie in (0, 179] degrees"),
     (["--max-joint-step", "0"], "must lie in (0, 179] degrees"),
     (["--max-joint-step", "smooth"], "give degrees, 'auto' (derived from the job) or 'off'"),
@@ -449,6 +455,15 @@ def bad_files(tmp_path, monkeypatch):
     (tmp_path / "unreachable.csv").write_text(
         header + "near,0.5,1.2,0.8,1,0,0,0\nfar,5,0,0,1,0,0,0\nhigh,0,0,9,1,0,0,0\n")
     (tmp_path / "broken_tool.json").write_text('{"shape": cylinder}')
+    # A KR 6 R700 pose whose branches all need j5 beyond ±120° (125° nearest), and one
+    # written in millimetres.
+    kuka = make_arm("kuka_kr6_r700")
+    inside = kuka.fk(np.array([0.2, -1.4, 1.8, 0.5, math.radians(100.0), 0.3]))
+    beyond = kuka.fk(np.array([0.2, -1.4, 1.8, 0.5, math.radians(125.0), 0.3]))
+    write_waypoints(tmp_path / "beyond_limits.csv", np.array([inside, beyond]))
+    scaled = inside.copy()
+    scaled[:3, 3] *= 1000.0
+    write_waypoints(tmp_path / "millimetres.csv", np.array([scaled, inside]))
     (tmp_path / "moving.xml").write_text(
         '<mujoco><worldbody><body name="cart"><joint type="slide"/>'
         '<geom type="box" size="0.1 0.1 0.1"/></body></worldbody></mujoco>')
