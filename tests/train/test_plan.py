@@ -441,6 +441,7 @@ BAD_INPUTS = [
     (["--out", "absent/plan.csv"], "folder absent does not exist"),
     (["--out", "paper.csv"], "--out paper.csv would overwrite an input file"),
     (["--json", "plan.csv"], "--json plan.csv: the file name must end in .json"),
+    (["--map", "map.jpg"], "--map map.jpg: the file name must end in .png"),
     (["--gif-size", "8", "8"], "--gif-size must be at least 16 16"),
 ]
 
@@ -699,3 +700,37 @@ def test_rows_near_a_singularity_are_flagged_and_can_be_avoided(tmp_path, capsys
     assert main(["--arm", "anthropomorphic", "--waypoints",
                  str(EXAMPLES / "paper_worked_example.csv"), "--out", str(out)]) == EXIT_OK
     assert {row["wrist_margin_deg"] for row in rows_of(out)} == {""}  # no rules: blank
+
+
+def test_the_map_shows_every_branchs_state_and_the_plan(tmp_path):
+    from ikbranch_gym.train.plan.chart import (
+        COLLIDES,
+        FREE,
+        LEFT_OUT,
+        NEAR_SINGULAR,
+        OUTSIDE_LIMITS,
+        STATES,
+        cell_states,
+    )
+
+    path = _spin(tmp_path / "spin.csv")
+    args = ["--arm", "kuka_kr6_r700", "--waypoints", str(path), "--segments", "0,22",
+            "--out", str(tmp_path / "plan.csv"), "--map", str(tmp_path / "map.png")]
+    assert main(args) == EXIT_OK
+    request = plan_module.request_from_args(plan_module.parser().parse_args(args))
+    result = plan_module.plan(request)
+    states = cell_states(result)
+    arm = make_arm("kuka_kr6_r700")
+    _, exists = arm.ik(result.targets)
+    assert states.shape == (30, arm.n_branches)
+    np.testing.assert_array_equal(states == OUTSIDE_LIMITS, ~exists)  # every pose reachable
+    np.testing.assert_array_equal(states == LEFT_OUT, exists & ~result.ladder_valid)
+    assert (states == LEFT_OUT).any() and not (states == COLLIDES).any()  # the empty cell
+    for step in result.chosen_run.reached:  # the plan runs through branches it may take
+        assert states[step.waypoint, step.branch] in (FREE, NEAR_SINGULAR)
+    image = iio.imread(tmp_path / "map.png")
+    assert image.shape[0] > 300 and image.shape[1] > 300
+    found = {tuple(int(v) for v in pixel[:3]) for pixel in image.reshape(-1, image.shape[-1])}
+    free, left_out = (tuple(int(STATES[s][1][i:i + 2], 16) for i in (1, 3, 5))
+                      for s in (FREE, LEFT_OUT))
+    assert free in found and left_out in found  # both states drawn in their colours

@@ -8,6 +8,7 @@ import math
 import sys
 import traceback
 from collections.abc import Sequence
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ikbranch_gym.agents.evaluation import ORACLE
@@ -15,6 +16,7 @@ from ikbranch_gym.envs.files import write_all_atomically
 
 from . import __doc__ as DESCRIPTION
 from .animation import animation_frames, gif_bytes, render_frames
+from .chart import map_png
 from .outputs import plan_csv, plan_json, summary_table
 from .playing import Plan, plan
 from .request import PLANNERS, PlanInputError, output_paths, request_from_args
@@ -78,6 +80,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, metavar="plan.csv", help="the plan (CSV)")
     p.add_argument("--json", metavar="FILE", help="everything, as JSON")
     p.add_argument("--gif", metavar="FILE", help="an animation of the plan")
+    p.add_argument("--map", metavar="FILE",
+                   help="a PNG map: waypoints × branches coloured by state, the plan drawn")
     p.add_argument("--gif-size", type=int, nargs=2, default=(480, 360),
                    metavar=("W", "H"), help="GIF frame size in pixels (480 360)")
     p.add_argument("--gif-fps", type=float, default=12.0,
@@ -122,6 +126,24 @@ def _warn_off_line(result: Plan) -> None:
               "check the line moves on the controller", file=sys.stderr)
 
 
+def _outputs(result: Plan, outputs: dict[str, Path], args: argparse.Namespace,
+             argv: Sequence[str]) -> dict[Path, bytes]:
+    """The content of every requested output file."""
+    files = {outputs["--out"]: plan_csv(result).encode("utf-8")}
+    if "--json" in outputs:
+        record = plan_json(result, argv)
+        files[outputs["--json"]] = (json.dumps(record, indent=1, allow_nan=False)
+                                    + "\n").encode("utf-8")
+    if "--gif" in outputs:
+        width, height = args.gif_size
+        frames = animation_frames(result, fps=args.gif_fps, speed=args.gif_speed)
+        images = render_frames(result, frames, width, height)
+        files[outputs["--gif"]] = gif_bytes(images, [f.duration for f in frames])
+    if "--map" in outputs:
+        files[outputs["--map"]] = map_png(result)
+    return files
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     args = parser().parse_args(_join_negative_start(argv))
@@ -135,15 +157,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         request = request_from_args(args)
         outputs = output_paths(args, request)
         result = plan(request)
-        files = {outputs["--out"]: plan_csv(result).encode("utf-8")}
-        if "--json" in outputs:
-            record = plan_json(result, argv)
-            files[outputs["--json"]] = (json.dumps(record, indent=1, allow_nan=False)
-                                        + "\n").encode("utf-8")
-        if "--gif" in outputs:
-            frames = animation_frames(result, fps=args.gif_fps, speed=args.gif_speed)
-            images = render_frames(result, frames, width, height)
-            files[outputs["--gif"]] = gif_bytes(images, [f.duration for f in frames])
+        files = _outputs(result, outputs, args, argv)
         write_all_atomically(files)  # every file or none
     except PlanInputError as exc:
         return _fail(str(exc))

@@ -171,6 +171,10 @@ class Plan:
     free_start: bool
     model: Any  # the MuJoCo model (for the animation)
     segments: np.ndarray  # (N,) each waypoint's process segment
+    #: (N, K) the branches every planner chose from (the env's ladder) and those whose
+    #: configuration collides.
+    ladder_valid: np.ndarray
+    ladder_endpoint: np.ndarray
     #: The step limit inside segments (rad): given or derived; with continuity off, half a
     #: revolution (``MAX_LIMIT``: only flips and turn changes are flagged). ``continuity``:
     #: the ladder's ``envs.process.Continuity`` (None: off).
@@ -283,7 +287,9 @@ def plan(request: PlanRequest) -> Plan:
         sources=tuple(waypoints.where(i) for i in range(len(waypoints))),
         file_poses=np.array(waypoints.poses), targets=np.array(task.poses),
         start=np.array(task.start), free_start=bool(task.free_start), model=base.model,
-        segments=segments, limit=MAX_LIMIT if kept is None else kept.limit, continuity=kept,
+        segments=segments, ladder_valid=np.array(base.ladder.valid),
+        ladder_endpoint=np.array(base.ladder.endpoint_collision),
+        limit=MAX_LIMIT if kept is None else kept.limit, continuity=kept,
         singularity_margin=request.singularity_margin, shoulder_margin=request.shoulder_margin,
         singularities_avoided=request.avoid_singularities, line_tolerance=request.line_tolerance,
         scene=base.scene_file, tool=base.tool,

@@ -367,7 +367,9 @@ def output_paths(args: argparse.Namespace, request: PlanRequest) -> dict[str, Pa
         outputs["--json"] = Path(args.json)
     if args.gif:
         outputs["--gif"] = Path(args.gif)
-    suffixes = {"--out": ".csv", "--json": ".json", "--gif": ".gif"}
+    if args.map:
+        outputs["--map"] = Path(args.map)
+    suffixes = {"--out": ".csv", "--json": ".json", "--gif": ".gif", "--map": ".png"}
     for option, path in outputs.items():
         if path.suffix.lower() != suffixes[option]:
             raise PlanInputError(f"{option} {path}: the file name must end in "
@@ -379,7 +381,7 @@ def output_paths(args: argparse.Namespace, request: PlanRequest) -> dict[str, Pa
             raise PlanInputError(f"{option} {path}: is a folder")
     resolved = [path.resolve() for path in outputs.values()]
     if len(set(resolved)) != len(resolved):
-        raise PlanInputError("--out, --json and --gif must name different files")
+        raise PlanInputError("--out, --json, --gif and --map must name different files")
     inputs = [p for p in (request.waypoints, request.scene, request.tool_file) if p]
     for option, path in outputs.items():
         if any(path.resolve() == p.resolve() for p in inputs):
