@@ -17,6 +17,7 @@ from ikbranch_gym.envs.files import write_all_atomically
 from . import __doc__ as DESCRIPTION
 from .animation import animation_frames, gif_bytes, render_frames
 from .chart import map_png
+from .controllers import krl, rapid, urscript
 from .outputs import plan_csv, plan_json, summary_table
 from .playing import Plan, plan
 from .request import PLANNERS, PlanInputError, output_paths, request_from_args
@@ -80,6 +81,13 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, metavar="plan.csv", help="the plan (CSV)")
     p.add_argument("--json", metavar="FILE", help="everything, as JSON")
     p.add_argument("--gif", metavar="FILE", help="an animation of the plan")
+    p.add_argument("--krl", metavar="NAME.src",
+                   help="a KUKA KRL program of the plan (NAME.src and NAME.dat: PTP to "
+                        "E6AXIS targets)")
+    p.add_argument("--rapid", metavar="NAME.mod",
+                   help="an ABB RAPID module of the plan (MoveAbsJ to jointtargets)")
+    p.add_argument("--urscript", metavar="NAME.script",
+                   help="a URScript program of the plan (movej to joint lists)")
     p.add_argument("--map", metavar="FILE",
                    help="a PNG map: waypoints × branches coloured by state, the plan drawn")
     p.add_argument("--gif-size", type=int, nargs=2, default=(480, 360),
@@ -141,6 +149,15 @@ def _outputs(result: Plan, outputs: dict[str, Path], args: argparse.Namespace,
         files[outputs["--gif"]] = gif_bytes(images, [f.duration for f in frames])
     if "--map" in outputs:
         files[outputs["--map"]] = map_png(result)
+    if "--krl" in outputs:
+        src, dat = krl(result, outputs["--krl"].stem)
+        files[outputs["--krl"]] = src.encode("ascii")
+        files[outputs["--krl (.dat)"]] = dat.encode("ascii")
+    if "--rapid" in outputs:
+        files[outputs["--rapid"]] = rapid(result, outputs["--rapid"].stem).encode("ascii")
+    if "--urscript" in outputs:
+        files[outputs["--urscript"]] = urscript(result, outputs["--urscript"].stem).encode(
+            "ascii")
     return files
 
 

@@ -359,21 +359,41 @@ def request_from_args(args: argparse.Namespace) -> PlanRequest:
     )
 
 
+def _check_program(option: str, path: Path, request: PlanRequest) -> None:
+    """A controller program's language drives the arm, its file name is a program name."""
+    from .controllers import check_family, program_name
+
+    try:
+        check_family(option[2:], request.arm)
+        program_name(path.stem, option)
+    except ValueError as exc:
+        raise PlanInputError(str(exc)) from None
+
+
 def output_paths(args: argparse.Namespace, request: PlanRequest) -> dict[str, Path]:
-    """``--out``, ``--json``, ``--gif`` checked: the right suffix, an existing folder,
-    distinct from each other and from every input file."""
+    """``--out``, ``--json``, ``--gif``, ``--map`` and the controller programs checked:
+    the right suffix (a KRL program's ``.dat`` beside its ``.src``), an existing folder,
+    a program name the controller accepts for an arm it drives, distinct from each other
+    and from every input file."""
+    from .controllers import SUFFIXES
+
     outputs = {"--out": Path(args.out)}
-    if args.json:
-        outputs["--json"] = Path(args.json)
-    if args.gif:
-        outputs["--gif"] = Path(args.gif)
-    if args.map:
-        outputs["--map"] = Path(args.map)
-    suffixes = {"--out": ".csv", "--json": ".json", "--gif": ".gif", "--map": ".png"}
-    for option, path in outputs.items():
+    for option, value in (("--json", args.json), ("--gif", args.gif), ("--map", args.map),
+                          ("--krl", args.krl), ("--rapid", args.rapid),
+                          ("--urscript", args.urscript)):
+        if value:
+            outputs[option] = Path(value)
+    suffixes = {"--out": ".csv", "--json": ".json", "--gif": ".gif", "--map": ".png",
+                **{f"--{language}": suffix for language, suffix in SUFFIXES.items()}}
+    for option, path in list(outputs.items()):
         if path.suffix.lower() != suffixes[option]:
             raise PlanInputError(f"{option} {path}: the file name must end in "
                                  f"{suffixes[option]}")
+        if option[2:] in SUFFIXES:
+            _check_program(option, path, request)
+        if option == "--krl":
+            outputs["--krl (.dat)"] = path.with_suffix(".dat")
+    for option, path in outputs.items():
         folder = path.parent if str(path.parent) else Path(".")
         if not folder.is_dir():
             raise PlanInputError(f"{option} {path}: folder {folder} does not exist")
@@ -381,9 +401,15 @@ def output_paths(args: argparse.Namespace, request: PlanRequest) -> dict[str, Pa
             raise PlanInputError(f"{option} {path}: is a folder")
     resolved = [path.resolve() for path in outputs.values()]
     if len(set(resolved)) != len(resolved):
-        raise PlanInputError("--out, --json, --gif and --map must name different files")
+        raise PlanInputError("--out, --json, --gif, --map and the programs must name "
+                             "different files")
+    _check_not_inputs(outputs, request)
+    return outputs
+
+
+def _check_not_inputs(outputs: dict[str, Path], request: PlanRequest) -> None:
+    """No output overwrites an input file."""
     inputs = [p for p in (request.waypoints, request.scene, request.tool_file) if p]
     for option, path in outputs.items():
         if any(path.resolve() == p.resolve() for p in inputs):
             raise PlanInputError(f"{option} {path} would overwrite an input file")
-    return outputs
