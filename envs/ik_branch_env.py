@@ -26,6 +26,7 @@ from ikbranch_gym.envs.task_frame import FramedArm, TaskFrame
 from ikbranch_gym.envs.tasks import TASKS, Task
 from ikbranch_gym.envs.tasks.file_task import FileTask
 from ikbranch_gym.envs.tasks.waypoint_file import read_waypoints
+from ikbranch_gym.envs.tool_axis import ToolAxisArm, axis_angles
 from ikbranch_gym.envs.tools import Tool
 
 if TYPE_CHECKING:
@@ -55,6 +56,43 @@ def _check_choices(arm: str, scene: str, task: str, render_mode: str | None) -> 
             raise ValueError(f"unknown {what} {value!r}; choose one of {', '.join(known)}")
     if render_mode not in (None, *IKBranchEnv.metadata["render_modes"]):
         raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+
+
+def _free_tool_axis(arm: Arm, tool: Tool | None, task: str, tool_axis: Any) -> Arm:
+    """``arm`` with its tool free about the TCP's z axis (``tool_axis`` [range, step])."""
+    if task != "file":
+        raise ValueError("tool_axis is for task='file'")
+    if not (isinstance(tool_axis, list | tuple) and len(tool_axis) == 2):
+        raise ValueError(f"tool_axis must be [range, step] in rad, got {tool_axis!r}")
+    return cast(Arm, ToolAxisArm(arm, None if tool is None else tool.tcp,
+                                 axis_angles(*tool_axis)))
+
+
+def _check_job_options(arm: Arm, task: str, max_joint_step: Any, singularity_margin: Any,
+                       shoulder_margin: Any) -> None:
+    """Process continuity and singularity margins: waypoint-file tasks only, values in
+    range, margins only for arms with singularity rules."""
+    if max_joint_step is not None:
+        if task != "file":
+            raise ValueError("max_joint_step (process continuity) is for task='file': "
+                             "its waypoints form the process segments")
+        if max_joint_step != "auto":
+            check_limit(max_joint_step)
+    for name, margin in (("singularity_margin", singularity_margin),
+                         ("shoulder_margin", shoulder_margin)):
+        if margin is None:
+            continue
+        if task != "file":
+            raise ValueError(f"{name} is for task='file'")
+        if not has_singularity_rules(arm):
+            raise ValueError(f"{name}: {arm.name} has no singularity rules (OPW and UR arms "
+                             "have them)")
+        angle = name == "singularity_margin"
+        upper = np.pi / 2 if angle else np.inf
+        if (isinstance(margin, bool) or not isinstance(margin, numbers.Real)
+                or not 0.0 <= float(margin) < upper):
+            raise ValueError(f"{name} must be a finite number >= 0"
+                             + (" below π/2 (rad)" if angle else " (m)") + f", got {margin!r}")
 
 
 def _check_numbers(collision_penalty: float, invalid_penalty: float,
@@ -203,6 +241,7 @@ class IKBranchEnv(gym.Env):
     max_joint_step        None                    process continuity: step limit (rad), "auto"
     singularity_margin    None                    no branch this near a wrist/elbow singular (rad)
     shoulder_margin       None                    no branch this near the shoulder singularity (m)
+    tool_axis             None                    [range, step] (rad): the tool free about its axis
     scene_file            None                    ``scene="file"``: an MJCF file of the cell
     scene_options         None                    base_pos/_quat/_rpy, floor, decompose, …
     tool                  None                    a tool (``envs/tools.py``); None: built-in
@@ -216,7 +255,8 @@ class IKBranchEnv(gym.Env):
     - Same ids, same behaviour (2026-12-04): process continuity for waypoint-file tasks,
       the new arguments ``max_joint_step`` and ``task_segments`` (off by default); waypoint
       files may carry a ``segment`` column; ``singularity_margin`` and ``shoulder_margin``
-      keep branches away from singular configurations (off by default).
+      keep branches away from singular configurations, ``tool_axis`` lets a round tool
+      turn about its axis (its angles join the branches); all off by default.
     - The current generation (2026-12-04): Cartesian, Cylindrical, Spherical,
       Anthropomorphic, Cylindrical4 **-v3**, ToolTransfer **-v2**, DualRRPRPP, DualRRRPPP,
       DualPPRPRR **-v2**, RodMechanism **-v3**, KukaKR6, UR5e, IRB4600ToolTransfer,
@@ -301,6 +341,7 @@ class IKBranchEnv(gym.Env):
         max_joint_step: float | str | None = None,
         singularity_margin: float | None = None,
         shoulder_margin: float | None = None,
+        tool_axis: list[float] | None = None,
         scene_file: str | None = None,
         scene_options: dict[str, Any] | None = None,
         tool: dict[str, Any] | None = None,
@@ -316,39 +357,24 @@ class IKBranchEnv(gym.Env):
         _check_numbers(collision_penalty, invalid_penalty, collision_resolution, width, height)
         self.arm = make_arm(arm, **(arm_params or {}))
         self.tool = None if tool is None else Tool.from_spec(tool)
+        #: The arm as built and simulated (``self.arm`` with a free tool axis is a
+        #: ``ToolAxisArm`` around it: its branches × the tool's angles).
+        self.kinematic_arm = self.arm
+        if tool_axis is not None:
+            self.arm = _free_tool_axis(self.arm, self.tool, task, tool_axis)
         self.render_mode, self.scene = render_mode, scene
         self.lookahead = _integer(lookahead, "lookahead", 0)
         scene_kwargs = self._place_arm(scene, scene_file, scene_options)
         self._generator = self._task_generator(task, task_file, task_start, task_points_abc,
                                                task_segments)
-        if max_joint_step is not None:
-            if task != "file":
-                raise ValueError("max_joint_step (process continuity) is for task='file': "
-                                 "its waypoints form the process segments")
-            if max_joint_step != "auto":
-                check_limit(max_joint_step)
-        for name, margin in (("singularity_margin", singularity_margin),
-                             ("shoulder_margin", shoulder_margin)):
-            if margin is None:
-                continue
-            if task != "file":
-                raise ValueError(f"{name} is for task='file'")
-            if not has_singularity_rules(self.arm):
-                raise ValueError(f"{name}: {self.arm.name} has no singularity rules (OPW "
-                                 "and UR arms have them)")
-            angle = name == "singularity_margin"
-            upper = np.pi / 2 if angle else np.inf
-            if (isinstance(margin, bool) or not isinstance(margin, numbers.Real)
-                    or not 0.0 <= float(margin) < upper):
-                raise ValueError(f"{name} must be a finite number >= 0"
-                                 + (" below π/2 (rad)" if angle else " (m)")
-                                 + f", got {margin!r}")
+        _check_job_options(self.kinematic_arm, task, max_joint_step, singularity_margin,
+                           shoulder_margin)
         self._generator.check_arm(self._task_arm, scene)
         self.n_waypoints = self._waypoint_count(task, n_waypoints)
         draws_scenes = self._scene_seeds(scene, scene_seed, scene_seeds)
         if scene == "random_clutter":
             scene_kwargs = {"seed": scene_seed}
-        self.model = build_arm_model(self.arm, scene, tool=self.tool,
+        self.model = build_arm_model(self.kinematic_arm, scene, tool=self.tool,
                                      collision_shapes=collision_shapes, **scene_kwargs)
         #: The per-episode clutter's obstacle slots (``scene_seed=None``), else None.
         self._clutter = ClutterSlots(self.model, CLUTTER_SLOTS) if draws_scenes else None

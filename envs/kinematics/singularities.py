@@ -43,8 +43,9 @@ class SingularityMargins:
 
 
 def has_singularity_rules(arm: Arm) -> bool:
-    """``arm`` is of a family whose singular configurations this module knows."""
-    return isinstance(arm, FAMILIES)
+    """``arm`` (or the arm it wraps, ``base_arm``) is of a family whose singular
+    configurations this module knows."""
+    return isinstance(getattr(arm, "base_arm", arm), FAMILIES)
 
 
 def _from_zero_or_pi(angle: np.ndarray) -> np.ndarray:
@@ -56,6 +57,7 @@ def _from_zero_or_pi(angle: np.ndarray) -> np.ndarray:
 def singularity_margins(arm: Arm, q: ArrayLike) -> SingularityMargins:
     """How far configurations ``q`` (…, 6) lie from ``arm``'s singular configurations
     (module docstring); ``ValueError`` for an arm of another family. NaN rows give NaN."""
+    arm = getattr(arm, "base_arm", arm)  # an arm wrapped with a free tool axis: its own
     q = np.asarray(q, dtype=np.float64)
     finite = np.isfinite(q).all(axis=-1)
     if not finite.all():  # NaN rows (branches that do not exist): NaN margins

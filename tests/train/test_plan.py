@@ -437,6 +437,9 @@ BAD_INPUTS = [
     (["--singularity-margin", "90"], "--singularity-margin must lie in [0, 90) degrees"),
     (["--shoulder-margin", "-1"], "--shoulder-margin must be a length >= 0 in mm"),
     (["--line-tolerance", "nan"], "--line-tolerance must be a length >= 0 in mm"),
+    (["--tool-axis", "90"], "--tool-axis '90': give RANGE:STEP in degrees"),
+    (["--tool-axis", "200:10"], "tool_axis range must lie in [0, π] rad"),
+    (["--tool-axis", "180:1"], "--tool-axis '180:1': tool_axis samples 360 angles; at most 73"),
     (["--out", "plan.txt"], "--out plan.txt: the file name must end in .csv"),
     (["--out", "absent/plan.csv"], "folder absent does not exist"),
     (["--out", "paper.csv"], "--out paper.csv would overwrite an input file"),
@@ -734,3 +737,27 @@ def test_the_map_shows_every_branchs_state_and_the_plan(tmp_path):
     free, left_out = (tuple(int(STATES[s][1][i:i + 2], 16) for i in (1, 3, 5))
                       for s in (FREE, LEFT_OUT))
     assert free in found and left_out in found  # both states drawn in their colours
+
+
+def test_a_free_tool_axis_follows_the_spin_in_one_segment(tmp_path, capsys):
+    """The spin job, impossible as one segment with a fixed tool (j6 would have to
+    unwind), follows as one with the tool free about its axis: the plan turns it back
+    25° a waypoint, one configuration, 15° of travel."""
+    path = _spin(tmp_path / "spin.csv")
+    out, record = tmp_path / "plan.csv", tmp_path / "plan.json"
+    args = ["--arm", "kuka_kr6_r700", "--waypoints", str(path), "--out", str(out)]
+    assert main(args) == EXIT_INPUT  # fixed: the segment breaks
+    capsys.readouterr()
+    assert main([*args, "--tool-axis", "180:25", "--json", str(record)]) == EXIT_OK
+    data = json.loads(record.read_text())
+    summary = data["summary"]["dp_oracle"]
+    assert summary["success"] and summary["reconfigurations"] == 0
+    assert summary["travel_deg"] == pytest.approx(15.0, abs=1e-9)
+    steps = data["planners"]["dp_oracle"]["steps"]
+    assert max(step["fk_residual"] for step in steps) < 1e-12
+    angles = [float(row["tool_angle_deg"]) for row in rows_of(out)]
+    # The tool turned back 25° a waypoint, but once from −175° to 175° (−10°: the angles
+    # are multiples of 25° within ±180°), where j6 turns the other 15°: all the travel.
+    turns = sorted(round((t + 180) % 360 - 180, 9) for t in np.diff(angles))
+    assert turns == [-25.0] * 28 + [-10.0]
+    assert data["inputs"]["env_kwargs"]["tool_axis"] == [math.pi, math.radians(25)]

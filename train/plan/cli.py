@@ -70,6 +70,9 @@ def parser() -> argparse.ArgumentParser:
                         "singularity (mm, default 20)")
     p.add_argument("--avoid-singularities", action="store_true",
                    help="no planner may take a branch within those margins")
+    p.add_argument("--tool-axis", metavar="RANGE:STEP",
+                   help="a round tool free about its TCP z axis: every STEP degrees within "
+                        "±RANGE (e.g. 180:15); the plan chooses the angle with the branch")
     p.add_argument("--line-tolerance", type=float, default=1.0, metavar="MM",
                    help="flag moves inside a segment whose TCP leaves the straight line by "
                         "more than this (mm, default 1)")

@@ -40,12 +40,19 @@ def _display(values: np.ndarray, kinds: Sequence[str]) -> list[float]:
 
 def csv_columns(arm: Arm) -> list[str]:
     names, kinds = arm.joint_names, arm.joint_types
-    return (["waypoint", "name", "segment", "branch", "label", "configuration", *names,
+    return (["waypoint", "name", "segment", "branch", "label", "configuration",
+             "tool_angle_deg", *names,
              *(f"{n}_{_unit_suffix(k)}" for n, k in zip(names, kinds, strict=True)),
              "travel_rad", "travel_deg", "time_s", "collision", "max_step_deg", "air_move",
              "reconfiguration", "wrist_margin_deg", "elbow_margin_deg", "shoulder_margin_mm",
              "near_singularity", "line_deviation_mm", "line_rotation_deg", "off_line",
              "cumulative_travel_rad", "cumulative_travel_deg"])
+
+
+def tool_angle(arm: Any, branch: int) -> float:
+    """The tool's angle about its axis in ``branch`` (rad; 0 without a free tool axis)."""
+    angles = getattr(arm, "branch_angles", None)
+    return 0.0 if angles is None else float(angles[branch])
 
 
 def _line(move: ProcessMove) -> list[str]:
@@ -77,7 +84,8 @@ def plan_csv(plan: Plan, run: PlanRun | None = None) -> str:
         cumulative += step.travel
         writer.writerow([
             step.waypoint, plan.names[step.waypoint], move.segment, step.branch, step.label,
-            move.configuration, *(repr(float(v)) for v in step.q),
+            move.configuration, repr(math.degrees(tool_angle(arm, step.branch))),
+            *(repr(float(v)) for v in step.q),
             *(repr(v) for v in _display(step.q, arm.joint_types)),
             repr(step.travel), repr(math.degrees(step.travel)), repr(step.time),
             int(step.collision), repr(math.degrees(move.max_step)), int(move.air_move),
@@ -187,7 +195,11 @@ def plan_json(plan: Plan, argv: Sequence[str] | None = None) -> dict[str, Any]:
             entry["segment"] = int(plan.segments[step.waypoint])
             if not step.invalid:
                 fk = arm.fk(step.q)
-                entry["fk_residual"] = float(np.abs(fk - plan.targets[step.waypoint]).max())
+                target = plan.targets[step.waypoint]
+                if hasattr(arm, "branch_pose"):  # a free tool axis: the pose turned
+                    target = arm.branch_pose(target, step.branch)
+                entry["fk_residual"] = float(np.abs(fk - target).max())
+                entry["tool_angle"] = tool_angle(arm, step.branch)
                 move = next(moves)
                 entry.update(configuration=move.configuration, max_step=move.max_step,
                              air_move=move.air_move, reconfiguration=move.reconfiguration,

@@ -27,7 +27,8 @@ PLANNERS = tuple(BASELINES)
 #: fixed by the command).
 RESERVED_ENV_KWARGS = ("arm", "arm_params", "scene", "scene_file", "scene_options", "task",
                        "task_file", "task_start", "task_points_abc", "task_segments",
-                       "max_joint_step", "singularity_margin", "shoulder_margin", "tool",
+                       "max_joint_step", "singularity_margin", "shoulder_margin",
+                       "tool_axis", "tool",
                        "collision_resolution", "n_waypoints", "render_mode", "width", "height")
 
 
@@ -65,6 +66,9 @@ class PlanRequest:
     #: Moves inside a segment whose TCP leaves the straight line by more than this (m)
     #: are flagged.
     line_tolerance: float = 0.001
+    #: A free tool axis: (range, step) in rad, the tool turned about its axis by every
+    #: multiple of step within ±range (None: fixed).
+    tool_axis: tuple[float, float] | None = None
 
     def make_kwargs(self) -> dict[str, Any]:
         """The :class:`~envs.ik_branch_env.IKBranchEnv` arguments (JSON-able)."""
@@ -80,6 +84,8 @@ class PlanRequest:
             "task_segments": None if self.segments is None else list(self.segments),
             "max_joint_step": self.max_joint_step,
         }
+        if self.tool_axis is not None:
+            kwargs["tool_axis"] = list(self.tool_axis)
         if self.avoid_singularities:
             kwargs["singularity_margin"] = self.singularity_margin
             kwargs["shoulder_margin"] = self.shoulder_margin
@@ -222,6 +228,27 @@ def parse_max_joint_step(text: str) -> float | str | None:
     return math.radians(degrees)
 
 
+def parse_tool_axis(text: str | None) -> tuple[float, float] | None:
+    """``--tool-axis RANGE:STEP`` (degrees): (range, step) in rad, checked."""
+    if text is None:
+        return None
+    parts = text.split(":")
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        half_range, step = (math.radians(float(part)) for part in parts)
+    except ValueError:
+        raise PlanInputError(f"--tool-axis {text!r}: give RANGE:STEP in degrees, e.g. 180:15 "
+                             "(every 15° from −180° to 180°)") from None
+    from ikbranch_gym.envs.tool_axis import axis_angles
+
+    try:
+        axis_angles(half_range, step)
+    except ValueError as exc:
+        raise PlanInputError(f"--tool-axis {text!r}: {exc}") from None
+    return half_range, step
+
+
 def parse_segments(text: str | None) -> tuple[int, ...] | None:
     """``--segments``: the 0-based waypoints where segments begin, comma-separated."""
     if text is None:
@@ -345,6 +372,7 @@ def request_from_args(args: argparse.Namespace) -> PlanRequest:
         raise PlanInputError(f"--line-tolerance must be a length >= 0 in mm, got "
                              f"{args.line_tolerance!r}")
     return PlanRequest(
+        tool_axis=parse_tool_axis(args.tool_axis),
         line_tolerance=args.line_tolerance / 1000.0,
         singularity_margin=math.radians(args.singularity_margin),
         shoulder_margin=args.shoulder_margin / 1000.0,
