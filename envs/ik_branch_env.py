@@ -238,6 +238,8 @@ class IKBranchEnv(gym.Env):
     task_start            None                    its start q (None: free first branch)
     task_points_abc       None                    four-point files: a, b, c (mm)
     task_segments         None                    first waypoints of its process segments
+    task_units            None                    "m" or "mm": of its x, y, z (None: the format's)
+    task_columns          None                    further columns it may carry (passed through)
     max_joint_step        None                    process continuity: step limit (rad), "auto"
     singularity_margin    None                    no branch this near a wrist/elbow singular (rad)
     shoulder_margin       None                    no branch this near the shoulder singularity (m)
@@ -338,6 +340,8 @@ class IKBranchEnv(gym.Env):
         task_start: list[float] | None = None,
         task_points_abc: list[float] | None = None,
         task_segments: list[int] | None = None,
+        task_units: str | None = None,
+        task_columns: list[str] | None = None,
         max_joint_step: float | str | None = None,
         singularity_margin: float | None = None,
         shoulder_margin: float | None = None,
@@ -366,7 +370,7 @@ class IKBranchEnv(gym.Env):
         self.lookahead = _integer(lookahead, "lookahead", 0)
         scene_kwargs = self._place_arm(scene, scene_file, scene_options)
         self._generator = self._task_generator(task, task_file, task_start, task_points_abc,
-                                               task_segments)
+                                               task_segments, task_units, task_columns)
         _check_job_options(self.kinematic_arm, task, max_joint_step, singularity_margin,
                            shoulder_margin)
         self._generator.check_arm(self._task_arm, scene)
@@ -452,14 +456,17 @@ class IKBranchEnv(gym.Env):
     def _task_generator(self, task: str, task_file: str | None,
                         task_start: list[float] | None,
                         task_points_abc: list[float] | None,
-                        task_segments: list[int] | None) -> Any:
+                        task_segments: list[int] | None, task_units: str | None = None,
+                        task_columns: list[str] | None = None) -> Any:
         if (task == "file") != (task_file is not None):
             raise ValueError("task='file' and task_file=PATH go together")
         if task_file is not None:
-            return self._file_task(task_file, task_start, task_points_abc, task_segments)
-        if task_start is not None or task_points_abc is not None or task_segments is not None:
-            raise ValueError("task_start, task_points_abc and task_segments are for "
-                             "task='file'")
+            return self._file_task(task_file, task_start, task_points_abc, task_segments,
+                                   task_units, task_columns)
+        if any(value is not None for value in (task_start, task_points_abc, task_segments,
+                                                task_units, task_columns)):
+            raise ValueError("task_start, task_points_abc, task_segments, task_units and "
+                             "task_columns are for task='file'")
         return TASKS[task]
 
     def _waypoint_count(self, task: str, n_waypoints: int | None) -> int:
@@ -486,13 +493,15 @@ class IKBranchEnv(gym.Env):
         return scene == "random_clutter" and scene_seed is None
 
     def _file_task(self, path: str, start: list[float] | None,
-                   abc: list[float] | None, segments: list[int] | None = None) -> FileTask:
+                   abc: list[float] | None, segments: list[int] | None = None,
+                   units: str | None = None, columns: list[str] | None = None) -> FileTask:
         """The task of a waypoint file: poses in the cell frame when a scene file gives one
         (else the arm's base frame), of the tool's TCP when a tool is given (else of the fk
         frame). ``ValueError`` naming every row no branch reaches, and why."""
         FileTask.check_arm(self._task_arm, "file")  # before the rows: a position-only arm
         a, b, c = (None, None, None) if abc is None else abc
-        waypoints = read_waypoints(path, a=a, b=b, c=c)
+        waypoints = read_waypoints(path, a=a, b=b, c=c, units=units,
+                                   extra_columns=tuple(columns or ()))
         poses = waypoints.poses
         start_q = None
         if start is not None:

@@ -10,6 +10,10 @@ cell is ignored, names are case-sensitive):
 ``quaternion``  ``x,y,z,qw,qx,qy,qz``: position (m) and a unit quaternion, w first.
 ``matrix``      ``x,y,z,r11,r12,r13,r21,r22,r23,r31,r32,r33``: position (m) and the
                 rotation matrix by rows (r12 is row 1, column 2).
+``kuka``        ``x,y,z,A,B,C``: a KUKA frame, position in mm and the angles A, B, C
+                (degrees) of R = Rz(A)·Ry(B)·Rx(C), as the controller shows them.
+``abb``         ``x,y,z,q1,q2,q3,q4``: an ABB ``robtarget``'s position (mm) and unit
+                quaternion ``orient`` (q1 the scalar part).
 ``points``      ``p1x,p1y,p1z,…,p4x,p4y,p4z``: the paper's four points (eq. 3) in mm,
                 O and the points (a, 0, 0), (0, b, 0), (0, 0, c) of the gripper frame, with
                 ``a,b,c`` (mm) as columns or as the ``a=``/``b=``/``c=`` options (each one
@@ -47,6 +51,9 @@ from ikbranch_gym.envs.kinematics import pose_from_points
 from ikbranch_gym.envs.kinematics.rotations import (
     ORTHONORMAL_TOL,
     quaternion_matrix,
+    rot_x,
+    rot_y,
+    rot_z,
     rotation_to_quaternion,
 )
 
@@ -68,11 +75,21 @@ NAME = "name"
 SEGMENT = "segment"
 
 #: The columns of each format (besides ``name``; ``a,b,c`` may join ``points``).
+KUKA_ANGLES = ("A", "B", "C")
+ABB_ORIENT = ("q1", "q2", "q3", "q4")
 FORMATS: dict[str, tuple[str, ...]] = {
     "quaternion": POSITION + QUATERNION,
     "matrix": POSITION + MATRIX,
+    "kuka": POSITION + KUKA_ANGLES,
+    "abb": POSITION + ABB_ORIENT,
     "points": POINTS,
 }
+#: The unit of x, y, z each format gives by default (``units`` overrides it; the four
+#: points are always in mm).
+DEFAULT_UNITS = {"quaternion": "m", "matrix": "m", "kuka": "mm", "abb": "mm", "points": "mm"}
+UNITS = {"m": 1.0, "mm": 0.001}
+#: The formats a pose's orientation comes from (columns after x, y, z).
+ROTATIONS = ("quaternion", "matrix", "kuka", "abb")
 
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
 _NOT_FINITE = {"nan", "+nan", "-nan", "inf", "+inf", "-inf", "infinity", "+infinity",
@@ -161,12 +178,15 @@ def read_waypoints(
     b: float | None = None,
     c: float | None = None,
     extra_columns: Iterable[str] = (),
+    units: str | None = None,
 ) -> WaypointFile:
     """Read a waypoint file (``.csv`` or ``.json``, by suffix).
 
     ``a``, ``b``, ``c`` (mm): the four-point format's distances when the file has no such
     columns. ``extra_columns``: names of further columns to accept (returned raw in
-    ``extras``). Raises :class:`WaypointFileError` naming the file, line/entry and problem.
+    ``extras``). ``units`` (``"m"`` or ``"mm"``): of x, y, z, overriding the format's
+    default (``DEFAULT_UNITS``; not for the four-point format). Raises
+    :class:`WaypointFileError` naming the file, line/entry and problem.
     """
     path = Path(path)
     kind = _kind(path)
@@ -180,8 +200,10 @@ def read_waypoints(
         raise WaypointFileError(path, f"cannot read: {exc.strerror}") from None
     if not text.strip():
         raise WaypointFileError(path, "empty file")
+    if units is not None and units not in UNITS:
+        raise WaypointFileError(path, f"units must be 'm' or 'mm', got {units!r}")
     rows = _csv_rows(path, text) if kind == "csv" else _json_rows(path, text)
-    return _parse(path, kind, *rows, {"a": a, "b": b, "c": c}, tuple(extra_columns))
+    return _parse(path, kind, *rows, {"a": a, "b": b, "c": c}, tuple(extra_columns), units)
 
 
 def _kind(path: Path) -> str:
@@ -280,9 +302,14 @@ def _parse(
     breaks: set[int],
     options: dict[str, float | None],
     extra_columns: tuple[str, ...],
+    units: str | None = None,
 ) -> WaypointFile:
     header_place = {"line": 1} if kind == "csv" else {"entry": 0}
     fmt = _recognise(path, header, header_place, options, extra_columns)
+    if units is not None and fmt == "points":
+        raise WaypointFileError(path, "units apply to x, y, z; the four-point format is "
+                                "always in mm", **header_place)
+    scale = UNITS[units or DEFAULT_UNITS[fmt]]
     if not rows:
         raise WaypointFileError(path, "no rows (only a header)", **header_place)
 
@@ -300,13 +327,17 @@ def _parse(
     if fmt == "points":
         poses = _points_poses(path, table, options, lines, place)
     else:
-        rotation = (
-            _quaternion_rotations(path, table, lines, place) if fmt == "quaternion"
-            else _matrix_rotations(path, table, lines, place)
-        )
+        if fmt == "quaternion":
+            rotation = _quaternion_rotations(path, table, lines, place)
+        elif fmt == "abb":
+            rotation = _quaternion_rotations(path, table, lines, place, ABB_ORIENT)
+        elif fmt == "kuka":
+            rotation = _kuka_rotations(table)
+        else:
+            rotation = _matrix_rotations(path, table, lines, place)
         poses = np.zeros((len(rows), 4, 4))
         poses[:, :3, :3] = rotation
-        poses[:, :3, 3] = np.stack([table[axis] for axis in POSITION], axis=-1)
+        poses[:, :3, 3] = np.stack([table[axis] for axis in POSITION], axis=-1) * scale
         poses[:, 3, 3] = 1.0
     poses.flags.writeable = False
 
@@ -374,10 +405,12 @@ def _format_of_columns(path: Path, header: list[str], columns: set[str],
                        header_place: dict) -> str:
     """The format the columns name: one rotation kind, or four points, never a mix."""
     present = {fmt: columns & set(cols) for fmt, cols in FORMATS.items()}
-    rotations = [fmt for fmt in ("quaternion", "matrix") if columns & set(FORMATS[fmt][3:])]
-    if len(rotations) == 2:
+    rotations = [fmt for fmt in ROTATIONS if columns & set(FORMATS[fmt][3:])]
+    if len(rotations) >= 2:
+        names = {"quaternion": "quaternion (qw…qz)", "matrix": "matrix (r11…r33)",
+                 "kuka": "KUKA (A, B, C)", "abb": "ABB (q1…q4)"}
         raise WaypointFileError(
-            path, "both quaternion (qw…qz) and matrix (r11…r33) columns: keep one",
+            path, f"both {names[rotations[0]]} and {names[rotations[1]]} columns: keep one",
             **header_place,
         )
     if present["points"] and (rotations or columns & set(POSITION)):
@@ -487,10 +520,17 @@ def _text(path: Path, value: object, column: str, where: dict) -> str:
     )
 
 
+def _kuka_rotations(table: dict) -> np.ndarray:
+    """R = Rz(A)·Ry(B)·Rx(C), the angles in degrees (KUKA's frames)."""
+    a, b, c = (np.radians(table[key]) for key in KUKA_ANGLES)
+    return rot_z(a) @ rot_y(b) @ rot_x(c)
+
+
 def _quaternion_rotations(
-    path: Path, table: dict, lines: tuple[int, ...], place: Callable[[int], dict]
+    path: Path, table: dict, lines: tuple[int, ...], place: Callable[[int], dict],
+    keys: tuple[str, ...] = QUATERNION,
 ) -> np.ndarray:
-    w, x, y, z = (table[key] for key in QUATERNION)
+    w, x, y, z = (table[key] for key in keys)
     norm2 = w * w + x * x + y * y + z * z
     deviation = np.abs(np.sqrt(norm2) - 1.0)
     bad = np.flatnonzero(~(deviation <= QUATERNION_TOL))

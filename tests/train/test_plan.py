@@ -761,3 +761,34 @@ def test_a_free_tool_axis_follows_the_spin_in_one_segment(tmp_path, capsys):
     turns = sorted(round((t + 180) % 360 - 180, 9) for t in np.diff(angles))
     assert turns == [-25.0] * 28 + [-10.0]
     assert data["inputs"]["env_kwargs"]["tool_axis"] == [math.pi, math.radians(25)]
+
+
+def test_a_kuka_frame_file_in_mm_with_its_own_columns(tmp_path, capsys):
+    """The deburring passes typed as a KUKA user would: x, y, z in mm, A, B, C in degrees
+    and a feed column carried through to the plan."""
+    rows = rows_of(EXAMPLES / "deburring_passes.csv")[:6]
+    path = tmp_path / "kuka.csv"
+    lines = ["x,y,z,A,B,C,feed"]
+    for i, row in enumerate(rows):  # flange z down: A = 0, B = 0, C = 180
+        lines.append(f"{float(row['x']) * 1000:g},{float(row['y']) * 1000:g},"
+                     f"{float(row['z']) * 1000:g},0,0,180,{100 + i}")
+    path.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "plan.csv"
+    args = ["--arm", "kuka_kr6_r700", "--waypoints", str(path), "--out", str(out)]
+    assert main([*args, "--extra-columns", "feed"]) == EXIT_OK
+    kuka = rows_of(out)
+    assert [row["feed"] for row in kuka] == [str(100 + i) for i in range(6)]
+    assert main(["--arm", "kuka_kr6_r700", "--waypoints",
+                 str(EXAMPLES / "deburring_passes.csv"), "--out",
+                 str(tmp_path / "metres.csv")]) == EXIT_OK
+    metres = rows_of(tmp_path / "metres.csv")[:6]
+    for mine, theirs in zip(kuka, metres, strict=True):  # the same poses: the same plan
+        assert mine["branch"] == theirs["branch"]
+        assert abs(float(mine["j1"]) - float(theirs["j1"])) < 1e-9
+    capsys.readouterr()
+    assert main([*args, "--extra-columns", "feed", "--units", "m"]) == EXIT_INPUT
+    assert "is the file in millimetres?" in capsys.readouterr().err
+    assert main(args) == EXIT_INPUT  # an undeclared column is an error, not dropped
+    assert "unknown column 'feed'" in capsys.readouterr().err
+    assert main([*args, "--extra-columns", "feed,branch"]) == EXIT_INPUT
+    assert "--extra-columns: branch would be columns of the plan" in capsys.readouterr().err

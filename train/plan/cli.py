@@ -37,6 +37,11 @@ def parser() -> argparse.ArgumentParser:
                    help="waypoint file, CSV or JSON (docs/files.md)")
     p.add_argument("--points-abc", type=float, nargs=3, metavar=("A", "B", "C"),
                    help="four-point files: a, b, c in mm (when the file has no a,b,c columns)")
+    p.add_argument("--units", choices=("m", "mm"),
+                   help="the unit of the file's x, y, z (default: m, or mm for the KUKA and "
+                        "ABB formats)")
+    p.add_argument("--extra-columns", metavar="C1,C2,…",
+                   help="further columns of the waypoint file, passed through to the plan")
     p.add_argument("--scene", metavar="FILE",
                    help="MJCF scene file of the cell (default: the empty scene, floor only)")
     p.add_argument("--scene-options", metavar="JSON",

@@ -38,7 +38,7 @@ def _display(values: np.ndarray, kinds: Sequence[str]) -> list[float]:
             for v, kind in zip(values, kinds, strict=True)]
 
 
-def csv_columns(arm: Arm) -> list[str]:
+def csv_columns(arm: Arm, extra: Sequence[str] = ()) -> list[str]:
     names, kinds = arm.joint_names, arm.joint_types
     return (["waypoint", "name", "segment", "branch", "label", "configuration",
              "tool_angle_deg", *names,
@@ -46,7 +46,7 @@ def csv_columns(arm: Arm) -> list[str]:
              "travel_rad", "travel_deg", "time_s", "collision", "max_step_deg", "air_move",
              "reconfiguration", "wrist_margin_deg", "elbow_margin_deg", "shoulder_margin_mm",
              "near_singularity", "line_deviation_mm", "line_rotation_deg", "off_line",
-             "cumulative_travel_rad", "cumulative_travel_deg"])
+             "cumulative_travel_rad", "cumulative_travel_deg", *extra])
 
 
 def tool_angle(arm: Any, branch: int) -> float:
@@ -78,7 +78,7 @@ def plan_csv(plan: Plan, run: PlanRun | None = None) -> str:
     arm = plan.arm
     buffer = io.StringIO(newline="")
     writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(csv_columns(arm))
+    writer.writerow(csv_columns(arm, list(plan.extras)))
     cumulative = 0.0
     for step, move in zip(run.reached, plan.moves(run), strict=True):
         cumulative += step.travel
@@ -92,6 +92,7 @@ def plan_csv(plan: Plan, run: PlanRun | None = None) -> str:
             int(move.reconfiguration), *_margins(move), move.near_singularities,
             *_line(move),
             repr(cumulative), repr(math.degrees(cumulative)),
+            *(str(plan.extras[column][step.waypoint]) for column in plan.extras),
         ])
     return buffer.getvalue()
 

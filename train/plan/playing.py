@@ -165,6 +165,7 @@ class Plan:
     arm: Any
     names: tuple[str, ...]
     sources: tuple[str, ...]  # "line 3" / "entry 2" per waypoint
+    extras: dict[str, tuple]  # the passed-through columns' raw values per waypoint
     file_poses: np.ndarray  # (N, 4, 4) as written in the file (cell frame, TCP)
     targets: np.ndarray  # (N, 4, 4) the fk frame's poses in the base frame
     start: np.ndarray  # where the first move starts (free start: unused)
@@ -276,14 +277,15 @@ def plan(request: PlanRequest) -> Plan:
             env.close()
     base = first.unwrapped
     a, b, c = request.points_abc or (None, None, None)
-    waypoints = read_waypoints(request.waypoints, a=a, b=b, c=c)
+    waypoints = read_waypoints(request.waypoints, a=a, b=b, c=c, units=request.units,
+                               extra_columns=request.extra_columns)
     task = base.task
     kept = base.ladder.continuity
     segments = (waypoints.segments if request.segments is None
                 else segment_index(len(waypoints), request.segments))
     return Plan(
         request=request, runs=runs, chosen=request.planners[0], arm=base.arm,
-        names=waypoints.names,
+        names=waypoints.names, extras=waypoints.extras,
         sources=tuple(waypoints.where(i) for i in range(len(waypoints))),
         file_poses=np.array(waypoints.poses), targets=np.array(task.poses),
         start=np.array(task.start), free_start=bool(task.free_start), model=base.model,

@@ -27,6 +27,7 @@ PLANNERS = tuple(BASELINES)
 #: fixed by the command).
 RESERVED_ENV_KWARGS = ("arm", "arm_params", "scene", "scene_file", "scene_options", "task",
                        "task_file", "task_start", "task_points_abc", "task_segments",
+                       "task_units", "task_columns",
                        "max_joint_step", "singularity_margin", "shoulder_margin",
                        "tool_axis", "tool",
                        "collision_resolution", "n_waypoints", "render_mode", "width", "height")
@@ -69,6 +70,10 @@ class PlanRequest:
     #: A free tool axis: (range, step) in rad, the tool turned about its axis by every
     #: multiple of step within ±range (None: fixed).
     tool_axis: tuple[float, float] | None = None
+    #: The unit of the file's x, y, z ("m", "mm"; None: its format's), and the further
+    #: columns it carries, passed through to the plan's CSV.
+    units: str | None = None
+    extra_columns: tuple[str, ...] = ()
 
     def make_kwargs(self) -> dict[str, Any]:
         """The :class:`~envs.ik_branch_env.IKBranchEnv` arguments (JSON-able)."""
@@ -82,6 +87,8 @@ class PlanRequest:
             "scene_options": self.scene_options, "tool": self.tool,
             "collision_resolution": self.resolution,
             "task_segments": None if self.segments is None else list(self.segments),
+            "task_units": self.units,
+            "task_columns": list(self.extra_columns) or None,
             "max_joint_step": self.max_joint_step,
         }
         if self.tool_axis is not None:
@@ -368,10 +375,19 @@ def request_from_args(args: argparse.Namespace) -> PlanRequest:
     if args.points_abc is not None and any(not math.isfinite(v) for v in args.points_abc):
         raise PlanInputError(f"--points-abc must be finite lengths in mm, got {args.points_abc}")
     _check_singularity_options(args, arm)
+    extra = [part.strip() for part in (args.extra_columns or "").split(",") if part.strip()]
+    from .outputs import csv_columns
+
+    taken = sorted(set(extra) & set(csv_columns(arm)))
+    if taken:
+        raise PlanInputError(f"--extra-columns: {', '.join(taken)} would be columns of the "
+                             "plan itself")
     if not (math.isfinite(args.line_tolerance) and args.line_tolerance >= 0.0):
         raise PlanInputError(f"--line-tolerance must be a length >= 0 in mm, got "
                              f"{args.line_tolerance!r}")
     return PlanRequest(
+        units=args.units,
+        extra_columns=tuple(extra),
         tool_axis=parse_tool_axis(args.tool_axis),
         line_tolerance=args.line_tolerance / 1000.0,
         singularity_margin=math.radians(args.singularity_margin),

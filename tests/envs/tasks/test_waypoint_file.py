@@ -86,6 +86,43 @@ def _cell(value) -> str:
 
 # ------------------------------------------------------------------------------ formats
 @pytest.mark.parametrize("suffix", [".csv", ".json"])
+def test_kuka_frames_in_mm_and_degrees(tmp_path, suffix):
+    # KUKA's A, B, C: R = Rz(A)·Ry(B)·Rx(C), angles in degrees, x, y, z in mm.
+    rng = np.random.default_rng(8)
+    angles = rng.uniform(-180, 180, size=(5, 3))
+    positions = rng.uniform(-900, 900, size=(5, 3))
+    path = tmp_path / f"k{suffix}"
+    write_table(path, ["x", "y", "z", "A", "B", "C"],
+                [[*p, *a] for p, a in zip(positions, angles, strict=True)])
+    file = read_waypoints(path)
+    assert file.format == "kuka"
+    for pose, p, (a, b, c) in zip(file.poses, positions, angles, strict=True):
+        expected = homogeneous(euler_zyx(*np.radians([a, b, c])), p / 1000.0)
+        np.testing.assert_allclose(pose, expected, atol=1e-15)
+    np.testing.assert_allclose(read_waypoints(path, units="m").poses[:, :3, 3], positions,
+                               atol=1e-12)
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".json"])
+def test_abb_robtargets_in_mm_with_their_quaternions(tmp_path, suffix):
+    q = unit_quaternions(5, seed=9)
+    positions = np.random.default_rng(10).uniform(-900, 900, size=(5, 3))
+    path = tmp_path / f"a{suffix}"
+    write_table(path, ["x", "y", "z", "q1", "q2", "q3", "q4"],
+                [[*p, *quat] for p, quat in zip(positions, q, strict=True)])
+    file = read_waypoints(path)
+    assert file.format == "abb"
+    for pose, p, quat in zip(file.poses, positions, q, strict=True):
+        np.testing.assert_allclose(pose, homogeneous(textbook_quaternion_matrix(*quat),
+                                                     p / 1000.0), atol=1e-15)
+    quaternion_file = tmp_path / f"m{suffix}"  # the metre formats take units too
+    write_table(quaternion_file, QUAT_HEADER.split(","), [[*p, *quat] for p, quat in
+                                                         zip(positions, q, strict=True)])
+    np.testing.assert_allclose(read_waypoints(quaternion_file, units="mm").poses,
+                               file.poses, atol=1e-15)
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".json"])
 def test_quaternion_rows_are_the_textbook_rotation(tmp_path, suffix):
     q = unit_quaternions(50, seed=1)
     xyz = np.random.default_rng(2).normal(size=(50, 3))
@@ -472,6 +509,18 @@ BAD_FILES = [
      "column segment: expected a segment name (text or a number), got null", 0),
     ("segment list", "s.json", json.dumps([_QJ | {"segment": [1]}]), {},
      "got [1]", 0),
+    ("kuka and quaternion", "k.csv", f"{QUAT_HEADER},A,B,C\n{_Q},0,0,0\n", {},
+     "both quaternion (qw…qz) and KUKA (A, B, C) columns: keep one", 1),
+    ("abb and matrix", "k.csv", f"{MATRIX_HEADER},q1,q2,q3,q4\n{_M},1,0,0,0\n", {},
+     "both matrix (r11…r33) and ABB (q1…q4) columns: keep one", 1),
+    ("kuka missing C", "k.csv", "x,y,z,A,B\n0,0,0,0,0\n", {}, "kuka format: missing column C",
+     1),
+    ("abb not unit", "a.csv", "x,y,z,q1,q2,q3,q4\n0,0,0,1,0,0,0\n0,0,0,1,0.1,0,0\n", {},
+     "quaternion norm", 3),
+    ("units for points", "p.csv", f"{POINTS_HEADER}\n{_P}\n",
+     {"a": 50, "b": 350, "c": 50, "units": "m"}, "the four-point format is always in mm", 1),
+    ("units unknown", "u.csv", f"{QUAT_HEADER}\n{_Q}\n", {"units": "cm"},
+     "units must be 'm' or 'mm'", None),
     ("suffix", "w.txt", _Q, {}, "unknown file type '.txt'", None),
     ("not utf-8", "b.csv", b"x,y,z\n\xff\xfe\x00", {}, "not UTF-8", None),
 ]
