@@ -14,6 +14,7 @@ from ikbranch_gym.envs.episodes import EpisodeBatch, new_scene_token
 from ikbranch_gym.envs.kinematics import ARM_NAMES, Arm, make_arm
 from ikbranch_gym.envs.kinematics.singularities import has_singularity_rules
 from ikbranch_gym.envs.models import SCENES, CollisionChecker, build_arm_model
+from ikbranch_gym.envs.models.contacts import allow_contacts
 from ikbranch_gym.envs.models.filter import CompiledFilter
 from ikbranch_gym.envs.models.scene_file import base_pose, load_scene_file
 from ikbranch_gym.envs.models.scenes import CLUTTER_SLOTS, ClutterSlots, draw_clutter
@@ -244,6 +245,7 @@ class IKBranchEnv(gym.Env):
     singularity_margin    None                    no branch this near a wrist/elbow singular (rad)
     shoulder_margin       None                    no branch this near the shoulder singularity (m)
     tool_axis             None                    [range, step] (rad): the tool free about its axis
+    allowed_contacts      None                    geom pairs (name patterns) that may touch
     scene_file            None                    ``scene="file"``: an MJCF file of the cell
     scene_options         None                    base_pos/_quat/_rpy, floor, decompose, …
     tool                  None                    a tool (``envs/tools.py``); None: built-in
@@ -258,7 +260,8 @@ class IKBranchEnv(gym.Env):
       the new arguments ``max_joint_step`` and ``task_segments`` (off by default); waypoint
       files may carry a ``segment`` column; ``singularity_margin`` and ``shoulder_margin``
       keep branches away from singular configurations, ``tool_axis`` lets a round tool
-      turn about its axis (its angles join the branches); all off by default.
+      turn about its axis (its angles join the branches), ``allowed_contacts`` leaves
+      named geom pairs out of the collision checks; all off by default.
     - The current generation (2026-12-04): Cartesian, Cylindrical, Spherical,
       Anthropomorphic, Cylindrical4 **-v3**, ToolTransfer **-v2**, DualRRPRPP, DualRRRPPP,
       DualPPRPRR **-v2**, RodMechanism **-v3**, KukaKR6, UR5e, IRB4600ToolTransfer,
@@ -346,6 +349,7 @@ class IKBranchEnv(gym.Env):
         singularity_margin: float | None = None,
         shoulder_margin: float | None = None,
         tool_axis: list[float] | None = None,
+        allowed_contacts: list[list[str]] | None = None,
         scene_file: str | None = None,
         scene_options: dict[str, Any] | None = None,
         tool: dict[str, Any] | None = None,
@@ -380,6 +384,9 @@ class IKBranchEnv(gym.Env):
             scene_kwargs = {"seed": scene_seed}
         self.model = build_arm_model(self.kinematic_arm, scene, tool=self.tool,
                                      collision_shapes=collision_shapes, **scene_kwargs)
+        #: The geom pairs left out of the collision checks (``envs/models/contacts.py``).
+        self.allowed_contacts = ([] if allowed_contacts is None
+                                 else allow_contacts(self.model, allowed_contacts))
         #: The per-episode clutter's obstacle slots (``scene_seed=None``), else None.
         self._clutter = ClutterSlots(self.model, CLUTTER_SLOTS) if draws_scenes else None
         #: The seed of the clutter standing now (None: the scene is fixed).

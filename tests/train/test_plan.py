@@ -792,3 +792,30 @@ def test_a_kuka_frame_file_in_mm_with_its_own_columns(tmp_path, capsys):
     assert "unknown column 'feed'" in capsys.readouterr().err
     assert main([*args, "--extra-columns", "feed,branch"]) == EXIT_INPUT
     assert "--extra-columns: branch would be columns of the plan" in capsys.readouterr().err
+
+
+def test_allowed_contacts_let_the_torch_work_close_to_the_plates(cell, capsys):
+    """The welding torch with its TCP 8 mm beyond the nozzle comes within the 10 mm
+    resolution of the plates: not safe to run, unless torch–plate contact is allowed;
+    every other pair stays checked, and each row says its clearance."""
+    (cell / "close_torch.json").write_text(
+        '{"shape": "cylinder", "size": [0.016, 0.35], "tcp": {"pos": [0, 0, 0.358]}}')
+    args = ["--arm", "abb_irb2400", "--waypoints", "examples/welding_seam.csv", "--scene",
+            "examples/welding_cell.xml", "--tool", "close_torch.json", "--out", "weld.csv",
+            "--json", "weld.json"]
+    assert main(args) == EXIT_UNSAFE
+    assert "tool – scene/plate_" in capsys.readouterr().err
+    assert main([*args, "--allow-contact", "tool:scene/plate_*"]) == EXIT_OK
+    record = json.loads((cell / "weld.json").read_text())
+    assert sorted(map(tuple, record["inputs"]["allowed_contacts"])) == [
+        ("tool", "scene/plate_left"), ("tool", "scene/plate_right")]
+    rows = rows_of(cell / "weld.csv")
+    gaps = [float(row["clearance_mm"]) for row in rows]
+    assert all(gap >= 10.0 for gap in gaps)  # as the checks allow: nothing else within δ
+    assert not any("plate" in row["clearance_pair"] for row in rows)
+    step = record["planners"]["dp_oracle"]["steps"][3]
+    assert step["clearance"] * 1000.0 == pytest.approx(gaps[3])
+    assert main([*args, "--allow-contact", "tool"]) == EXIT_INPUT
+    assert "give two geom names" in capsys.readouterr().err
+    assert main([*args, "--allow-contact", "tool:nothing*"]) == EXIT_INPUT
+    assert "'nothing*' names no collision geom" in capsys.readouterr().err

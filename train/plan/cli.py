@@ -75,6 +75,10 @@ def parser() -> argparse.ArgumentParser:
                         "singularity (mm, default 20)")
     p.add_argument("--avoid-singularities", action="store_true",
                    help="no planner may take a branch within those margins")
+    p.add_argument("--allow-contact", action="append", dest="allowed_contacts",
+                   metavar="A:B",
+                   help="repeatable: two geom names (fnmatch patterns, e.g. tool:scene/part*) "
+                        "that may touch; every other pair is still checked")
     p.add_argument("--tool-axis", metavar="RANGE:STEP",
                    help="a round tool free about its TCP z axis: every STEP degrees within "
                         "±RANGE (e.g. 180:15); the plan chooses the angle with the branch")

@@ -46,6 +46,7 @@ def csv_columns(arm: Arm, extra: Sequence[str] = ()) -> list[str]:
              "travel_rad", "travel_deg", "time_s", "collision", "max_step_deg", "air_move",
              "reconfiguration", "wrist_margin_deg", "elbow_margin_deg", "shoulder_margin_mm",
              "near_singularity", "line_deviation_mm", "line_rotation_deg", "off_line",
+             "clearance_mm", "clearance_pair",
              "cumulative_travel_rad", "cumulative_travel_deg", *extra])
 
 
@@ -80,7 +81,8 @@ def plan_csv(plan: Plan, run: PlanRun | None = None) -> str:
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(csv_columns(arm, list(plan.extras)))
     cumulative = 0.0
-    for step, move in zip(run.reached, plan.moves(run), strict=True):
+    for step, move, (gap, pair) in zip(run.reached, plan.moves(run), plan.clearances(run),
+                                       strict=True):
         cumulative += step.travel
         writer.writerow([
             step.waypoint, plan.names[step.waypoint], move.segment, step.branch, step.label,
@@ -90,7 +92,7 @@ def plan_csv(plan: Plan, run: PlanRun | None = None) -> str:
             repr(step.travel), repr(math.degrees(step.travel)), repr(step.time),
             int(step.collision), repr(math.degrees(move.max_step)), int(move.air_move),
             int(move.reconfiguration), *_margins(move), move.near_singularities,
-            *_line(move),
+            *_line(move), repr(1000.0 * gap), " – ".join(pair) if pair[0] else "",
             repr(cumulative), repr(math.degrees(cumulative)),
             *(str(plan.extras[column][step.waypoint]) for column in plan.extras),
         ])
@@ -183,6 +185,7 @@ def plan_json(plan: Plan, argv: Sequence[str] | None = None) -> dict[str, Any]:
     for key, run in plan.runs.items():
         steps = []
         moves = iter(plan.moves(run))
+        gaps = iter(plan.clearances(run))
         for step in run.steps:
             entry: dict[str, Any] = {
                 "waypoint": step.waypoint, "name": plan.names[step.waypoint],
@@ -201,6 +204,8 @@ def plan_json(plan: Plan, argv: Sequence[str] | None = None) -> dict[str, Any]:
                     target = arm.branch_pose(target, step.branch)
                 entry["fk_residual"] = float(np.abs(fk - target).max())
                 entry["tool_angle"] = tool_angle(arm, step.branch)
+                gap, pair = next(gaps)
+                entry["clearance"], entry["clearance_pair"] = gap, list(pair) if pair[0] else []
                 move = next(moves)
                 entry.update(configuration=move.configuration, max_step=move.max_step,
                              air_move=move.air_move, reconfiguration=move.reconfiguration,
@@ -231,6 +236,7 @@ def plan_json(plan: Plan, argv: Sequence[str] | None = None) -> dict[str, Any]:
             "start": {"free": plan.free_start,
                       "q": None if plan.free_start else [float(v) for v in plan.start]},
             "process": _process_record(plan),
+            "allowed_contacts": [list(pair) for pair in plan.allowed_contacts],
             "planners": list(request.planners),
             "env_kwargs": request.make_kwargs(),
             "versions": versions(("torch", "stable-baselines3", "sb3-contrib") if models

@@ -17,6 +17,8 @@ from .request import PlanRequest, make_env
 if TYPE_CHECKING:
     pass
 
+#: Clearances are measured up to this distance (m); farther is reported as this.
+CLEARANCE_RANGE = 1.0
 #: The seed of ``reset`` and of ``random`` (a file task draws nothing).
 SEED = 0
 
@@ -190,6 +192,23 @@ class Plan:
     line_tolerance: float = 0.001
     scene: Any = None  # the SceneFile, if any
     tool: Any = None  # the Tool, if any
+    #: The geom-name pairs left out of the collision checks (``--allow-contact``).
+    allowed_contacts: tuple[tuple[str, str], ...] = ()
+
+    def clearances(self, run: PlanRun | None = None) -> list[tuple[float, tuple[str, str]]]:
+        """Per row of ``run`` (default the chosen planner's): the least distance (m, at
+        most ``CLEARANCE_RANGE``) between any two geoms still checked, at the row's
+        configuration, and their names (``envs.models.contacts.clearance``)."""
+        import mujoco
+
+        from ikbranch_gym.envs.models.collision import candidate_pairs
+        from ikbranch_gym.envs.models.contacts import clearance
+
+        run = self.chosen_run if run is None else run
+        pairs = candidate_pairs(self.model)
+        data = mujoco.MjData(self.model)
+        return [clearance(self.model, data, step.q, pairs, CLEARANCE_RANGE)
+                for step in run.reached]
 
     @property
     def optimum(self) -> PlanRun:
@@ -295,4 +314,5 @@ def plan(request: PlanRequest) -> Plan:
         singularity_margin=request.singularity_margin, shoulder_margin=request.shoulder_margin,
         singularities_avoided=request.avoid_singularities, line_tolerance=request.line_tolerance,
         scene=base.scene_file, tool=base.tool,
+        allowed_contacts=tuple(tuple(pair) for pair in base.allowed_contacts),
     )

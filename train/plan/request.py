@@ -29,7 +29,7 @@ RESERVED_ENV_KWARGS = ("arm", "arm_params", "scene", "scene_file", "scene_option
                        "task_file", "task_start", "task_points_abc", "task_segments",
                        "task_units", "task_columns",
                        "max_joint_step", "singularity_margin", "shoulder_margin",
-                       "tool_axis", "tool",
+                       "tool_axis", "allowed_contacts", "tool",
                        "collision_resolution", "n_waypoints", "render_mode", "width", "height")
 
 
@@ -74,6 +74,8 @@ class PlanRequest:
     #: columns it carries, passed through to the plan's CSV.
     units: str | None = None
     extra_columns: tuple[str, ...] = ()
+    #: Geom pairs (name patterns) that may touch: left out of every collision check.
+    allowed_contacts: tuple[tuple[str, str], ...] = ()
 
     def make_kwargs(self) -> dict[str, Any]:
         """The :class:`~envs.ik_branch_env.IKBranchEnv` arguments (JSON-able)."""
@@ -93,6 +95,8 @@ class PlanRequest:
         }
         if self.tool_axis is not None:
             kwargs["tool_axis"] = list(self.tool_axis)
+        if self.allowed_contacts:
+            kwargs["allowed_contacts"] = [list(pair) for pair in self.allowed_contacts]
         if self.avoid_singularities:
             kwargs["singularity_margin"] = self.singularity_margin
             kwargs["shoulder_margin"] = self.shoulder_margin
@@ -233,6 +237,15 @@ def parse_max_joint_step(text: str) -> float | str | None:
                              f"{math.degrees(MAX_LIMIT):g}] degrees (a step of half a "
                              "revolution or more is a turn change)")
     return math.radians(degrees)
+
+
+def parse_allowed_contact(text: str) -> tuple[str, str]:
+    """``--allow-contact A:B``: two geom names or ``fnmatch`` patterns."""
+    parts = text.split(":")
+    if len(parts) != 2 or not all(part.strip() for part in parts):
+        raise PlanInputError(f"--allow-contact {text!r}: give two geom names (or patterns) "
+                             "joined by ':', e.g. tool:scene/part*")
+    return parts[0].strip(), parts[1].strip()
 
 
 def parse_tool_axis(text: str | None) -> tuple[float, float] | None:
@@ -386,6 +399,8 @@ def request_from_args(args: argparse.Namespace) -> PlanRequest:
         raise PlanInputError(f"--line-tolerance must be a length >= 0 in mm, got "
                              f"{args.line_tolerance!r}")
     return PlanRequest(
+        allowed_contacts=tuple(parse_allowed_contact(text)
+                               for text in args.allowed_contacts or ()),
         units=args.units,
         extra_columns=tuple(extra),
         tool_axis=parse_tool_axis(args.tool_axis),
