@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import json
 from pathlib import Path
 from typing import Any
@@ -10,7 +11,7 @@ from sb3_contrib.common.maskable.callbacks import MaskableEvalCallback
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 
-from ikbranch_gym.envs.files import write_atomically
+from ikbranch_gym.envs.files import write_all_atomically, write_atomically
 
 LATEST = "latest.zip"
 #: Running reward statistics of a ``VecNormalize`` training env, kept beside checkpoints.
@@ -41,8 +42,11 @@ class AtomicCheckpointCallback(BaseCallback):
 
     def save(self) -> Path:
         path = self.save_dir / f"ckpt_{self.num_timesteps}.zip"
-        atomic_save(self.model, path)
-        atomic_save(self.model, self.save_dir / LATEST)
+        # One serialisation for both files: the same bytes (a zip records the time it
+        # was written, so two saves a second apart would differ), both or neither.
+        buffer = io.BytesIO()
+        self.model.save(buffer)
+        write_all_atomically({path: buffer.getvalue(), self.save_dir / LATEST: buffer.getvalue()})
         normalizer = self.model.get_vec_normalize_env()
         if normalizer is not None:
             write_atomically(self.save_dir / REWARD_STATS, normalizer.save)

@@ -49,10 +49,13 @@ def test_a_save_failing_half_way_keeps_the_previous_checkpoint(callback, monkeyp
     before = {p.name: p.read_bytes() for p in directory.iterdir()}
     save = callback.model.save
 
-    def crash(path, *args, **kwargs):
-        save(path, *args, **kwargs)
-        with open(path, "r+b") as stream:  # half a file, then the process "dies"
-            stream.truncate(100)
+    def crash(target, *args, **kwargs):
+        save(target, *args, **kwargs)
+        if hasattr(target, "truncate"):  # a stream: half of it, then the process "dies"
+            target.truncate(100)
+        else:
+            with open(target, "r+b") as stream:
+                stream.truncate(100)
         raise KeyboardInterrupt
 
     monkeypatch.setattr(callback.model, "save", crash)
