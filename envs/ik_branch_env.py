@@ -261,7 +261,10 @@ class IKBranchEnv(gym.Env):
       files may carry a ``segment`` column; ``singularity_margin`` and ``shoulder_margin``
       keep branches away from singular configurations, ``tool_axis`` lets a round tool
       turn about its axis (its angles join the branches), ``allowed_contacts`` leaves
-      named geom pairs out of the collision checks; all off by default.
+      named geom pairs out of the collision checks; all off by default. A random task
+      draws up to 2,000 rounds of configurations (was 50) before it calls a clutter too
+      tight: no task found before changes, and a dense UR5e clutter no longer stops a
+      training run.
     - The current generation (2026-12-04): Cartesian, Cylindrical, Spherical,
       Anthropomorphic, Cylindrical4 **-v3**, ToolTransfer **-v2**, DualRRPRPP, DualRRRPPP,
       DualPPRPRR **-v2**, RodMechanism **-v3**, KukaKR6, UR5e, IRB4600ToolTransfer,

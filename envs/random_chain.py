@@ -47,7 +47,7 @@ def random_chain_configurations(arm: Arm, rng: np.random.Generator, n_waypoints:
     lower, upper = arm.joint_limits[:, 0].copy(), arm.joint_limits[:, 1].copy()
     chain = np.empty((n_waypoints + 1, arm.dof))
     status, have, count = _chain(rng, lower, upper, n_waypoints, checks._bound, lever,
-                                 float(resolution), chain)
+                                 float(resolution), chain, SAMPLE_ROUNDS)
     if status == TOO_FEW_FREE:
         raise RuntimeError(
             f"{arm.name}: found only {have} of {count} collision-free configurations in "
@@ -60,12 +60,12 @@ def random_chain_configurations(arm: Arm, rng: np.random.Generator, n_waypoints:
 
 
 @njit
-def _free_rows(rng, lower, upper, bound, count, out, at):
+def _free_rows(rng, lower, upper, bound, count, out, at, rounds):
     """``sample_free_configurations``: ``count`` collision-free rows drawn uniformly
     inside the limits, written to ``out[at : at + count]``. Returns (status, rows had)."""
     have = 0
     dof = len(lower)
-    for _ in range(SAMPLE_ROUNDS):
+    for _ in range(rounds):
         wanted = count - have
         rows = max(2 * wanted, 8)
         draw = np.empty((rows, dof))
@@ -101,10 +101,10 @@ def _links_free(bound, chain, links, count, lever, resolution, verdicts):
 
 
 @njit
-def _chain(rng, lower, upper, n, bound, lever, resolution, chain):
+def _chain(rng, lower, upper, n, bound, lever, resolution, chain, rounds):
     """``random_reachable``'s walk (its docstring) into ``chain`` (n + 1, dof). Returns
     (status, rows had, rows wanted) of the last sampling (for the error message)."""
-    status, have = _free_rows(rng, lower, upper, bound, n + 1, chain, 0)
+    status, have = _free_rows(rng, lower, upper, bound, n + 1, chain, 0, rounds)
     if status != DONE:
         return status, have, n + 1
     verdicts = np.zeros(n + 2, dtype=np.int64)  # link i: 0 unknown, 1 free, 2 collides
@@ -131,12 +131,12 @@ def _chain(rng, lower, upper, n, bound, lever, resolution, chain):
             if index > 1:
                 index -= 1  # redraw the configuration we came from (checked again below)
             else:
-                status, have = _free_rows(rng, lower, upper, bound, 1, chain, 0)
+                status, have = _free_rows(rng, lower, upper, bound, 1, chain, 0, rounds)
                 if status != DONE:
                     return status, have, 1
                 verdicts[1] = 0
                 continue
-        status, have = _free_rows(rng, lower, upper, bound, 1, chain, index)
+        status, have = _free_rows(rng, lower, upper, bound, 1, chain, index, rounds)
         if status != DONE:
             return status, have, 1
         verdicts[index] = 0
