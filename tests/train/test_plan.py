@@ -446,6 +446,7 @@ BAD_INPUTS = [
     (["--json", "plan.csv"], "--json plan.csv: the file name must end in .json"),
     (["--map", "map.jpg"], "--map map.jpg: the file name must end in .png"),
     (["--gif-size", "8", "8"], "--gif-size must be at least 16 16"),
+    (["--gif-hold", "0"], "--gif-hold must be a positive number"),
 ]
 
 
@@ -819,3 +820,50 @@ def test_allowed_contacts_let_the_torch_work_close_to_the_plates(cell, capsys):
     assert "give two geom names" in capsys.readouterr().err
     assert main([*args, "--allow-contact", "tool:nothing*"]) == EXIT_INPUT
     assert "'nothing*' names no collision geom" in capsys.readouterr().err
+
+
+def test_captions_print_only_glyphs_their_font_has():
+    """DejaVu Sans covers Latin, Cyrillic, dashes and arrows; what it lacks (CJK here) is
+    printed as '?' rather than as empty boxes. Checked against the font file's own
+    character map (fontTools, which matplotlib brings)."""
+    from fontTools.ttLib import TTFont
+    from matplotlib import font_manager
+
+    from ikbranch_gym.train.plan.animation import _font, printable
+
+    font = _font(14)
+    cmap = TTFont(font_manager.findfont("DejaVu Sans")).getBestCmap()
+    text = "waypoint 3 of 0–29: über ключ 一二 → 12°"
+    shown = printable(text, font)
+    assert shown == "waypoint 3 of 0–29: über ключ ?? → 12°"
+    assert all(ord(ch) in cmap for ch in shown if not ch.isspace())
+    assert all((ord(ch) in cmap) == (ch in shown) for ch in set(text) if not ch.isspace())
+
+
+def test_a_colliding_moves_geoms_are_drawn_red(cell):
+    """The welding seam with the jig collided as its hull: the move into waypoint 1 hits
+    it; that move's frames name the geoms in contact and draw them red."""
+    from dataclasses import replace
+
+    from ikbranch_gym.train.plan.animation import (
+        animation_frames,
+        drawn_geoms,
+        render_frames,
+    )
+
+    args = [*args_of(WELDING), "--scene-options", '{"decompose": "never"}']
+    request = plan_module.request_from_args(plan_module.parser().parse_args(args))
+    result = plan_module.plan(request)
+    frames = animation_frames(result, hold=0.2)
+    hit = [frame for frame in frames if frame.alert]
+    assert hit and all(frame.highlight == hit[0].highlight for frame in hit)
+    assert "tool" in hit[0].highlight and any("jig" in n for n in hit[0].highlight)
+    assert not any(frame.highlight for frame in frames if not frame.alert)
+    assert len(drawn_geoms(result.model, hit[0].highlight)) >= 3  # geoms and their twins
+    red, plain = render_frames(result, [hit[-1], replace(hit[-1], highlight=())], 240, 180)
+
+    def reddish(image):
+        rgb = image[..., :3].astype(int)
+        return int(((rgb[..., 0] > rgb[..., 1] + 40) & (rgb[..., 0] > rgb[..., 2] + 40)).sum())
+
+    assert reddish(red) > reddish(plain) + 50

@@ -106,6 +106,8 @@ def parser() -> argparse.ArgumentParser:
                    metavar=("W", "H"), help="GIF frame size in pixels (480 360)")
     p.add_argument("--gif-fps", type=float, default=12.0,
                    help="GIF frames per second along a move (12)")
+    p.add_argument("--gif-hold", type=float, default=0.5, metavar="S",
+                   help="GIF: how long each waypoint is held (s, 0.5)")
     p.add_argument("--gif-speed", type=float, default=1.0,
                    help="GIF playback speed: 1 is real time at the env's joint speeds (1)")
     return p
@@ -156,7 +158,8 @@ def _outputs(result: Plan, outputs: dict[str, Path], args: argparse.Namespace,
                                     + "\n").encode("utf-8")
     if "--gif" in outputs:
         width, height = args.gif_size
-        frames = animation_frames(result, fps=args.gif_fps, speed=args.gif_speed)
+        frames = animation_frames(result, fps=args.gif_fps, speed=args.gif_speed,
+                                  hold=args.gif_hold)
         images = render_frames(result, frames, width, height)
         files[outputs["--gif"]] = gif_bytes(images, [f.duration for f in frames])
     if "--map" in outputs:
@@ -180,7 +183,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         width, height = args.gif_size
         if width < 16 or height < 16:
             raise PlanInputError(f"--gif-size must be at least 16 16, got {width} {height}")
-        for option, value in (("--gif-fps", args.gif_fps), ("--gif-speed", args.gif_speed)):
+        for option, value in (("--gif-fps", args.gif_fps), ("--gif-speed", args.gif_speed),
+                              ("--gif-hold", args.gif_hold)):
             if not (math.isfinite(value) and value > 0):
                 raise PlanInputError(f"{option} must be a positive number, got {value!r}")
         request = request_from_args(args)
