@@ -241,6 +241,7 @@ class IKBranchEnv(gym.Env):
     task_segments         None                    first waypoints of its process segments
     task_units            None                    "m" or "mm": of its x, y, z (None: the format's)
     task_columns          None                    further columns it may carry (passed through)
+    task_skip_unreachable False                   leave out the rows no branch reaches
     max_joint_step        None                    process continuity: step limit (rad), "auto"
     singularity_margin    None                    no branch this near a wrist/elbow singular (rad)
     shoulder_margin       None                    no branch this near the shoulder singularity (m)
@@ -348,6 +349,7 @@ class IKBranchEnv(gym.Env):
         task_segments: list[int] | None = None,
         task_units: str | None = None,
         task_columns: list[str] | None = None,
+        task_skip_unreachable: bool = False,
         max_joint_step: float | str | None = None,
         singularity_margin: float | None = None,
         shoulder_margin: float | None = None,
@@ -377,7 +379,8 @@ class IKBranchEnv(gym.Env):
         self.lookahead = _integer(lookahead, "lookahead", 0)
         scene_kwargs = self._place_arm(scene, scene_file, scene_options)
         self._generator = self._task_generator(task, task_file, task_start, task_points_abc,
-                                               task_segments, task_units, task_columns)
+                                               task_segments, task_units, task_columns,
+                                               task_skip_unreachable)
         _check_job_options(self.kinematic_arm, task, max_joint_step, singularity_margin,
                            shoulder_margin)
         self._generator.check_arm(self._task_arm, scene)
@@ -467,16 +470,17 @@ class IKBranchEnv(gym.Env):
                         task_start: list[float] | None,
                         task_points_abc: list[float] | None,
                         task_segments: list[int] | None, task_units: str | None = None,
-                        task_columns: list[str] | None = None) -> Any:
+                        task_columns: list[str] | None = None,
+                        task_skip_unreachable: bool = False) -> Any:
         if (task == "file") != (task_file is not None):
             raise ValueError("task='file' and task_file=PATH go together")
         if task_file is not None:
             return self._file_task(task_file, task_start, task_points_abc, task_segments,
-                                   task_units, task_columns)
-        if any(value is not None for value in (task_start, task_points_abc, task_segments,
-                                                task_units, task_columns)):
-            raise ValueError("task_start, task_points_abc, task_segments, task_units and "
-                             "task_columns are for task='file'")
+                                   task_units, task_columns, bool(task_skip_unreachable))
+        if task_skip_unreachable or any(value is not None for value in (
+                task_start, task_points_abc, task_segments, task_units, task_columns)):
+            raise ValueError("task_start, task_points_abc, task_segments, task_units, "
+                             "task_columns and task_skip_unreachable are for task='file'")
         return TASKS[task]
 
     def _waypoint_count(self, task: str, n_waypoints: int | None) -> int:
@@ -504,7 +508,8 @@ class IKBranchEnv(gym.Env):
 
     def _file_task(self, path: str, start: list[float] | None,
                    abc: list[float] | None, segments: list[int] | None = None,
-                   units: str | None = None, columns: list[str] | None = None) -> FileTask:
+                   units: str | None = None, columns: list[str] | None = None,
+                   skip_unreachable: bool = False) -> FileTask:
         """The task of a waypoint file: poses in the cell frame when a scene file gives one
         (else the arm's base frame), of the tool's TCP when a tool is given (else of the fk
         frame). ``ValueError`` naming every row no branch reaches, and why."""
@@ -526,10 +531,16 @@ class IKBranchEnv(gym.Env):
                              f"{segments!r}")
         task = FileTask(waypoints, poses, start_q, None if segments is None
                         else segment_index(len(poses), segments))
-        problems = task.unreachable(self._task_arm)
-        if problems:
+        problems = task.unreachable_rows(self._task_arm)
+        #: The rows left out (``task_skip_unreachable``): their reasons.
+        self.skipped_rows = [problem for _, problem in problems]
+        if problems and (not skip_unreachable or len(problems) == len(poses)):
             raise ValueError(f"{len(problems)} of {len(poses)} waypoints cannot be reached "
-                             f"by {self.arm.name}:\n  " + "\n  ".join(problems))
+                             f"by {self.arm.name}:\n  " + "\n  ".join(self.skipped_rows))
+        if problems:
+            unreachable = {row for row, _ in problems}
+            task = task.keeping(np.array([w for w in range(len(poses))
+                                          if w not in unreachable]))
         return task
 
     # ------------------------------------------------------------------ shared pieces

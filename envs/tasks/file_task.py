@@ -23,8 +23,11 @@ class FileTask:
     finite_poses = True
 
     def __init__(self, waypoints: WaypointFile, poses: np.ndarray,
-                 start: np.ndarray | None, segments: np.ndarray | None = None) -> None:
+                 start: np.ndarray | None, segments: np.ndarray | None = None,
+                 rows: np.ndarray | None = None) -> None:
         self.waypoints = waypoints
+        #: The file's data rows the poses are (all of them, unless some were skipped).
+        self.rows = np.arange(len(poses)) if rows is None else np.asarray(rows)
         self.poses = np.array(poses, dtype=np.float64)
         self.poses.flags.writeable = False
         self.start = None if start is None else np.array(start, dtype=np.float64)
@@ -51,14 +54,24 @@ class FileTask:
     def unreachable(self, arm: Arm) -> list[str]:
         """Per row that no branch of ``arm`` (seen from the task frame) reaches, the
         reason: out of reach, or every branch outside the joint limits."""
+        return [problem for _, problem in self.unreachable_rows(arm)]
+
+    def unreachable_rows(self, arm: Arm) -> list[tuple[int, str]]:
+        """(waypoint, reason) of every waypoint no branch of ``arm`` reaches."""
         _, valid = arm.ik(self.poses)
         rows = np.flatnonzero(~valid.any(axis=-1))
         if not len(rows):
             return []
         exists = arm.reaches(self.poses[rows])
-        return [str(self.waypoints.row_error(
-            int(row), _outside_limits(arm, self.poses[row]) if inside else
-            _out_of_reach(self.poses[row]))) for row, inside in zip(rows, exists, strict=True)]
+        return [(int(row), str(self.waypoints.row_error(
+            int(self.rows[row]), _outside_limits(arm, self.poses[row]) if inside else
+            _out_of_reach(self.poses[row])))) for row, inside in zip(rows, exists, strict=True)]
+
+    def keeping(self, waypoints: np.ndarray) -> FileTask:
+        """This task with only ``waypoints`` (indices, in order): the rest skipped."""
+        keep = np.asarray(waypoints, dtype=np.int64)
+        return FileTask(self.waypoints, self.poses[keep], self.start, self.segments[keep],
+                        self.rows[keep])
 
 
 #: A waypoint farther than this (m) from the task frame's origin is no arm's: its file was

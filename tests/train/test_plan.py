@@ -867,3 +867,30 @@ def test_a_colliding_moves_geoms_are_drawn_red(cell):
         return int(((rgb[..., 0] > rgb[..., 1] + 40) & (rgb[..., 0] > rgb[..., 2] + 40)).sum())
 
     assert reddish(red) > reddish(plain) + 50
+
+
+def test_skip_unreachable_plans_the_rest_and_names_what_it_left_out(tmp_path, capsys):
+    arm = make_arm("kuka_kr6_r700")
+    near = arm.fk(np.array([0.2, -1.4, 1.8, 0.5, math.radians(100.0), 0.3]))
+    also = arm.fk(np.array([0.25, -1.4, 1.8, 0.5, math.radians(100.0), 0.3]))
+    far = near.copy()
+    far[0, 3] = 3.0
+    path = write_waypoints(tmp_path / "job.csv", np.array([near, far, also]),
+                           names=["a", "far away", "b"])
+    out, record = tmp_path / "plan.csv", tmp_path / "plan.json"
+    args = ["--arm", "kuka_kr6_r700", "--waypoints", str(path), "--out", str(out),
+            "--json", str(record)]
+    assert main(args) == EXIT_INPUT
+    assert "line 3: out of reach" in capsys.readouterr().err
+    assert main([*args, "--skip-unreachable"]) == EXIT_OK
+    err = capsys.readouterr().err
+    assert "1 rows no branch reaches were left out" in err and "line 3: out of reach" in err
+    rows = rows_of(out)
+    assert [(r["waypoint"], r["row"], r["name"]) for r in rows] == [("0", "0", "a"),
+                                                                    ("1", "2", "b")]
+    data = json.loads(record.read_text())
+    assert len(data["inputs"]["skipped"]) == 1 and "line 3" in data["inputs"]["skipped"][0]
+    assert [w["row"] for w in data["waypoints"]] == [0, 2]
+    only_far = write_waypoints(tmp_path / "far.csv", np.array([far]))
+    assert main(["--arm", "kuka_kr6_r700", "--waypoints", str(only_far), "--out", str(out),
+                 "--skip-unreachable"]) == EXIT_INPUT  # nothing left to plan

@@ -79,6 +79,9 @@ def parser() -> argparse.ArgumentParser:
                    metavar="A:B",
                    help="repeatable: two geom names (fnmatch patterns, e.g. tool:scene/part*) "
                         "that may touch; every other pair is still checked")
+    p.add_argument("--skip-unreachable", action="store_true",
+                   help="leave out the rows no branch reaches (each named on stderr) and "
+                        "plan the rest")
     p.add_argument("--tool-axis", metavar="RANGE:STEP",
                    help="a round tool free about its TCP z axis: every STEP degrees within "
                         "±RANGE (e.g. 180:15); the plan chooses the angle with the branch")
@@ -214,6 +217,10 @@ def main(argv: Sequence[str] | None = None) -> int:
           f"travel {math.degrees(chosen.travel):.2f}°, written to "
           + ", ".join(str(path) for path in files))
     _warn_off_line(result)
+    if result.skipped:
+        print(f"ikbranch plan: warning: {len(result.skipped)} rows no branch reaches were "
+              "left out (--skip-unreachable):\n  " + "\n  ".join(result.skipped),
+              file=sys.stderr)
     if not chosen.success:
         optimum = result.optimum
         note = "" if optimum.success else (

@@ -40,7 +40,7 @@ def _display(values: np.ndarray, kinds: Sequence[str]) -> list[float]:
 
 def csv_columns(arm: Arm, extra: Sequence[str] = ()) -> list[str]:
     names, kinds = arm.joint_names, arm.joint_types
-    return (["waypoint", "name", "segment", "branch", "label", "configuration",
+    return (["waypoint", "row", "name", "segment", "branch", "label", "configuration",
              "tool_angle_deg", *names,
              *(f"{n}_{_unit_suffix(k)}" for n, k in zip(names, kinds, strict=True)),
              "travel_rad", "travel_deg", "time_s", "collision", "max_step_deg", "air_move",
@@ -85,7 +85,8 @@ def plan_csv(plan: Plan, run: PlanRun | None = None) -> str:
                                        strict=True):
         cumulative += step.travel
         writer.writerow([
-            step.waypoint, plan.names[step.waypoint], move.segment, step.branch, step.label,
+            step.waypoint, plan.rows[step.waypoint], plan.names[step.waypoint], move.segment,
+            step.branch, step.label,
             move.configuration, repr(math.degrees(tool_angle(arm, step.branch))),
             *(repr(float(v)) for v in step.q),
             *(repr(v) for v in _display(step.q, arm.joint_types)),
@@ -178,7 +179,8 @@ def plan_json(plan: Plan, argv: Sequence[str] | None = None) -> dict[str, Any]:
     models = any(run.spec.endswith(".zip") for run in plan.runs.values())
     waypoints = []
     for i, name in enumerate(plan.names):
-        waypoints.append({"index": i, "name": name, "source": plan.sources[i],
+        waypoints.append({"index": i, "row": plan.rows[i], "name": name,
+                          "source": plan.sources[i],
                           "pose": _matrix(plan.file_poses[i]),
                           "fk_pose": _matrix(plan.targets[i])})
     planners = {}
@@ -237,6 +239,7 @@ def plan_json(plan: Plan, argv: Sequence[str] | None = None) -> dict[str, Any]:
                       "q": None if plan.free_start else [float(v) for v in plan.start]},
             "process": _process_record(plan),
             "allowed_contacts": [list(pair) for pair in plan.allowed_contacts],
+            "skipped": list(plan.skipped),
             "planners": list(request.planners),
             "env_kwargs": request.make_kwargs(),
             "versions": versions(("torch", "stable-baselines3", "sb3-contrib") if models

@@ -10,7 +10,7 @@ import numpy as np
 
 from ikbranch_gym.agents.evaluation import ORACLE, run_episode
 from ikbranch_gym.envs.kinematics.singularities import has_singularity_rules, singularity_margins
-from ikbranch_gym.envs.process import MAX_LIMIT, largest_steps, line_deviation, segment_index
+from ikbranch_gym.envs.process import MAX_LIMIT, largest_steps, line_deviation
 
 from .request import PlanRequest, make_env
 
@@ -168,6 +168,8 @@ class Plan:
     names: tuple[str, ...]
     sources: tuple[str, ...]  # "line 3" / "entry 2" per waypoint
     extras: dict[str, tuple]  # the passed-through columns' raw values per waypoint
+    rows: tuple[int, ...]  # per waypoint its 0-based data row in the file
+    skipped: tuple[str, ...]  # the rows left out (--skip-unreachable): why, with where
     file_poses: np.ndarray  # (N, 4, 4) as written in the file (cell frame, TCP)
     targets: np.ndarray  # (N, 4, 4) the fk frame's poses in the base frame
     start: np.ndarray  # where the first move starts (free start: unused)
@@ -300,15 +302,17 @@ def plan(request: PlanRequest) -> Plan:
                                extra_columns=request.extra_columns)
     task = base.task
     kept = base.ladder.continuity
-    segments = (waypoints.segments if request.segments is None
-                else segment_index(len(waypoints), request.segments))
+    rows = [int(row) for row in base._generator.rows]  # the file's rows planned
     return Plan(
         request=request, runs=runs, chosen=request.planners[0], arm=base.arm,
-        names=waypoints.names, extras=waypoints.extras,
-        sources=tuple(waypoints.where(i) for i in range(len(waypoints))),
-        file_poses=np.array(waypoints.poses), targets=np.array(task.poses),
+        names=tuple(waypoints.names[row] for row in rows),
+        extras={column: tuple(values[row] for row in rows)
+                for column, values in waypoints.extras.items()},
+        sources=tuple(waypoints.where(row) for row in rows), rows=tuple(rows),
+        skipped=tuple(base.skipped_rows),
+        file_poses=np.array(waypoints.poses)[rows], targets=np.array(task.poses),
         start=np.array(task.start), free_start=bool(task.free_start), model=base.model,
-        segments=segments, ladder_valid=np.array(base.ladder.valid),
+        segments=np.array(task.segments), ladder_valid=np.array(base.ladder.valid),
         ladder_endpoint=np.array(base.ladder.endpoint_collision),
         limit=MAX_LIMIT if kept is None else kept.limit, continuity=kept,
         singularity_margin=request.singularity_margin, shoulder_margin=request.shoulder_margin,

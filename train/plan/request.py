@@ -27,7 +27,7 @@ PLANNERS = tuple(BASELINES)
 #: fixed by the command).
 RESERVED_ENV_KWARGS = ("arm", "arm_params", "scene", "scene_file", "scene_options", "task",
                        "task_file", "task_start", "task_points_abc", "task_segments",
-                       "task_units", "task_columns",
+                       "task_units", "task_columns", "task_skip_unreachable",
                        "max_joint_step", "singularity_margin", "shoulder_margin",
                        "tool_axis", "allowed_contacts", "tool",
                        "collision_resolution", "n_waypoints", "render_mode", "width", "height")
@@ -76,6 +76,8 @@ class PlanRequest:
     extra_columns: tuple[str, ...] = ()
     #: Geom pairs (name patterns) that may touch: left out of every collision check.
     allowed_contacts: tuple[tuple[str, str], ...] = ()
+    #: Leave out the rows no branch reaches, and plan the rest.
+    skip_unreachable: bool = False
 
     def make_kwargs(self) -> dict[str, Any]:
         """The :class:`~envs.ik_branch_env.IKBranchEnv` arguments (JSON-able)."""
@@ -95,6 +97,8 @@ class PlanRequest:
         }
         if self.tool_axis is not None:
             kwargs["tool_axis"] = list(self.tool_axis)
+        if self.skip_unreachable:
+            kwargs["task_skip_unreachable"] = True
         if self.allowed_contacts:
             kwargs["allowed_contacts"] = [list(pair) for pair in self.allowed_contacts]
         if self.avoid_singularities:
@@ -399,6 +403,7 @@ def request_from_args(args: argparse.Namespace) -> PlanRequest:
         raise PlanInputError(f"--line-tolerance must be a length >= 0 in mm, got "
                              f"{args.line_tolerance!r}")
     return PlanRequest(
+        skip_unreachable=bool(args.skip_unreachable),
         allowed_contacts=tuple(parse_allowed_contact(text)
                                for text in args.allowed_contacts or ()),
         units=args.units,
