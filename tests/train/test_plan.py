@@ -894,3 +894,16 @@ def test_skip_unreachable_plans_the_rest_and_names_what_it_left_out(tmp_path, ca
     only_far = write_waypoints(tmp_path / "far.csv", np.array([far]))
     assert main(["--arm", "kuka_kr6_r700", "--waypoints", str(only_far), "--out", str(out),
                  "--skip-unreachable"]) == EXIT_INPUT  # nothing left to plan
+
+
+def test_collisions_are_listed_as_runs_of_waypoints(cell, capsys):
+    """With terminate_on_collision off the hulled jig is hit on every move of the seam:
+    one message names the run of waypoints and the pairs."""
+    from ikbranch_gym.train.plan.playing import _ranges
+
+    assert _ranges([9, 1, 2, 3, 7, 10]) == "1–3, 7, 9–10" and _ranges([4]) == "4"
+    args = [*args_of(WELDING), "--scene-options", '{"decompose": "never"}',
+            "--env-kwargs", '{"terminate_on_collision": false}']
+    assert main(args) == EXIT_UNSAFE
+    err = capsys.readouterr().err
+    assert "the moves into waypoints 1–8 collide (tool – scene/jig)" in err

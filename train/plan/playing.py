@@ -46,6 +46,17 @@ class Step:
     contact_fraction: float | None = None
 
 
+def _ranges(values: list[int]) -> str:
+    """Sorted integers as runs: [1, 2, 3, 7, 9, 10] -> "1–3, 7, 9–10"."""
+    runs: list[list[int]] = []
+    for value in sorted(values):
+        if runs and value == runs[-1][1] + 1:
+            runs[-1][1] = value
+        else:
+            runs.append([value, value])
+    return ", ".join(f"{a}–{b}" if b > a else f"{a}" for a, b in runs)
+
+
 @dataclass(frozen=True)
 class PlanRun:
     """One planner's episode on the task."""
@@ -80,13 +91,18 @@ class PlanRun:
         if self.success:
             return ""
         reasons = []
-        for step in self.steps:
-            if step.collision:
-                where = ("" if step.contact_fraction is None
-                         else f" at {step.contact_fraction:.0%} of the move")
-                pairs = ", ".join(f"{a} – {b}" for a, b in step.contacts)
-                reasons.append(f"the move into waypoint {step.waypoint} collides{where}"
-                               + (f" ({pairs})" if pairs else ""))
+        hits = [step for step in self.steps if step.collision]
+        if len(hits) == 1:
+            step = hits[0]
+            where = ("" if step.contact_fraction is None
+                     else f" at {step.contact_fraction:.0%} of the move")
+            pairs = ", ".join(f"{a} – {b}" for a, b in step.contacts)
+            reasons.append(f"the move into waypoint {step.waypoint} collides{where}"
+                           + (f" ({pairs})" if pairs else ""))
+        elif hits:  # (with terminate_on_collision off) as runs of waypoints
+            hit_pairs = sorted({f"{a} – {b}" for step in hits for a, b in step.contacts})
+            reasons.append(f"the moves into waypoints {_ranges([s.waypoint for s in hits])} "
+                           f"collide" + (f" ({', '.join(hit_pairs)})" if hit_pairs else ""))
         bad = [s.waypoint for s in self.steps if s.invalid]
         if bad:
             reasons.append(f"an invalid branch at waypoint {bad[0]}")
