@@ -275,6 +275,7 @@ def test_welding_example_plans_through_the_decomposed_fixture(cell, capsys):
     rows = rows_of(cell / "weld.csv")
     assert [row["off_line"] for row in rows] == ["", "1", *["0"] * 6, "1"]
     seam = [float(row["line_deviation_mm"]) for row in rows[2:8]]
+    assert {row["cfx"] for row in rows} == {"0"} and {row["cf6"] for row in rows} == {"-3"}
     assert 0.5 < min(seam) and max(seam) < 0.55
     record = json.loads((cell / "weld.json").read_text())
     summary = record["summary"]
@@ -607,6 +608,7 @@ def test_deburring_example_keeps_the_configuration_with_every_planner(cell, caps
     assert math.degrees(-optimum) == pytest.approx(190.97, abs=0.005)
     rows = rows_of(cell / "deburr.csv")  # 10 mm steps follow the line within 0.03 mm
     assert rows[0]["line_deviation_mm"] == "" and all(row["off_line"] == "0" for row in rows[1:])
+    assert {row["kuka_s"] for row in rows} == {"2"}  # KUKA's status of front/elbow-up/wrist+
     assert max(float(row["line_deviation_mm"]) for row in rows[1:]) < 0.03
     # Without continuity the learned policy flips the wrist inside the job: flagged.
     capsys.readouterr()

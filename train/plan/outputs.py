@@ -38,10 +38,35 @@ def _display(values: np.ndarray, kinds: Sequence[str]) -> list[float]:
             for v, kind in zip(values, kinds, strict=True)]
 
 
+def controller_columns(arm: Any) -> tuple[str, ...]:
+    """The controller's configuration columns of ``arm``'s plans (KUKA, ABB; else none)."""
+    name = getattr(arm, "base_arm", arm).name
+    if name.startswith("kuka_"):
+        return ("kuka_s", "kuka_t")
+    if name.startswith("abb_"):
+        return ("cf1", "cf4", "cf6", "cfx")
+    return ()
+
+
+def controller_values(arm: Any, q: np.ndarray) -> list[int]:
+    """The row's values of :func:`controller_columns`
+    (``envs.kinematics.controller_config``)."""
+    from ikbranch_gym.envs.kinematics.controller_config import abb_confdata, kuka_status_turn
+
+    base = getattr(arm, "base_arm", arm)
+    columns = controller_columns(arm)
+    if columns and columns[0] == "kuka_s":
+        status, turn = kuka_status_turn(base, q)
+        return [int(status), int(turn)]
+    if columns:
+        return [int(v) for v in abb_confdata(base, q)]
+    return []
+
+
 def csv_columns(arm: Arm, extra: Sequence[str] = ()) -> list[str]:
     names, kinds = arm.joint_names, arm.joint_types
     return (["waypoint", "row", "name", "segment", "branch", "label", "configuration",
-             "tool_angle_deg", *names,
+             "tool_angle_deg", *controller_columns(arm), *names,
              *(f"{n}_{_unit_suffix(k)}" for n, k in zip(names, kinds, strict=True)),
              "travel_rad", "travel_deg", "time_s", "collision", "max_step_deg", "air_move",
              "reconfiguration", "wrist_margin_deg", "elbow_margin_deg", "shoulder_margin_mm",
@@ -88,6 +113,7 @@ def plan_csv(plan: Plan, run: PlanRun | None = None) -> str:
             step.waypoint, plan.rows[step.waypoint], plan.names[step.waypoint], move.segment,
             step.branch, step.label,
             move.configuration, repr(math.degrees(tool_angle(arm, step.branch))),
+            *controller_values(arm, step.q),
             *(repr(float(v)) for v in step.q),
             *(repr(v) for v in _display(step.q, arm.joint_types)),
             repr(step.travel), repr(math.degrees(step.travel)), repr(step.time),
@@ -206,6 +232,8 @@ def plan_json(plan: Plan, argv: Sequence[str] | None = None) -> dict[str, Any]:
                     target = arm.branch_pose(target, step.branch)
                 entry["fk_residual"] = float(np.abs(fk - target).max())
                 entry["tool_angle"] = tool_angle(arm, step.branch)
+                entry["controller_configuration"] = dict(zip(
+                    controller_columns(arm), controller_values(arm, step.q), strict=True))
                 gap, pair = next(gaps)
                 entry["clearance"], entry["clearance_pair"] = gap, list(pair) if pair[0] else []
                 move = next(moves)
