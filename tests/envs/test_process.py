@@ -295,8 +295,8 @@ def test_the_vector_env_is_the_single_env_bit_for_bit(spin_file):
 def test_continuity_needs_a_file_task_and_a_limit_below_half_a_turn(spin_file):
     with pytest.raises(ValueError, match=r"max_joint_step .* is for task='file'"):
         IKBranchEnv(arm=ARM, scene="empty", max_joint_step="auto")
-    with pytest.raises(ValueError, match="task_segments, task_units and task_columns are for "
-                                         "task='file'"):
+    with pytest.raises(ValueError, match="task_segments, task_units, task_columns and "
+                                         "task_skip_unreachable are for task='file'"):
         IKBranchEnv(arm=ARM, scene="empty", task_segments=[2])
     with pytest.raises(ValueError, match="must lie in"):
         _env(spin_file, max_joint_step=4.0)
