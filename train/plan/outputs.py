@@ -135,14 +135,14 @@ def summary(plan: Plan) -> dict[str, dict[str, Any]]:
     optimum, decision time (ms per waypoint), waypoints reached."""
     out = {}
     for key, run in plan.runs.items():
+        moves = plan.moves(run)
         out[key] = {
             "spec": run.spec, "return": run.reward, "travel": run.travel,
             "travel_deg": math.degrees(run.travel), "time": run.time,
             "collisions": run.collisions,
-            "reconfigurations": sum(move.reconfiguration for move in plan.moves(run)),
-            "near_singularities": sum(bool(move.near_singularities)
-                                      for move in plan.moves(run)),
-            "off_line": sum(move.off_line for move in plan.moves(run)),
+            "reconfigurations": sum(move.reconfiguration for move in moves),
+            "near_singularities": sum(bool(move.near_singularities) for move in moves),
+            "off_line": sum(move.off_line for move in moves),
             "success": run.success, "gap": plan.gap(run),
             "decision_ms": 1e3 * run.decision_seconds / max(len(run.steps), 1),
             "waypoints_reached": len(run.reached), "n_waypoints": run.n_waypoints,

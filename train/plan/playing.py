@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -212,6 +212,8 @@ class Plan:
     tool: Any = None  # the Tool, if any
     #: The geom-name pairs left out of the collision checks (``--allow-contact``).
     allowed_contacts: tuple[tuple[str, str], ...] = ()
+    #: ``moves`` and ``clearances`` per run name: each output asks for them again.
+    _derived: dict[tuple[str, str], Any] = field(default_factory=dict, repr=False)
 
     def clearances(self, run: PlanRun | None = None) -> list[tuple[float, tuple[str, str]]]:
         """Per row of ``run`` (default the chosen planner's): the least distance (m, at
@@ -223,10 +225,13 @@ class Plan:
         from ikbranch_gym.envs.models.contacts import clearance
 
         run = self.chosen_run if run is None else run
-        pairs = candidate_pairs(self.model)
-        data = mujoco.MjData(self.model)
-        return [clearance(self.model, data, step.q, pairs, CLEARANCE_RANGE)
-                for step in run.reached]
+        key = ("clearances", run.name)
+        if key not in self._derived:
+            pairs = candidate_pairs(self.model)
+            data = mujoco.MjData(self.model)
+            self._derived[key] = [clearance(self.model, data, step.q, pairs, CLEARANCE_RANGE)
+                                  for step in run.reached]
+        return list(self._derived[key])
 
     @property
     def optimum(self) -> PlanRun:
@@ -235,6 +240,12 @@ class Plan:
     def moves(self, run: PlanRun | None = None) -> list[ProcessMove]:
         """The process view of each row of ``run`` (default the chosen planner's)."""
         run = self.chosen_run if run is None else run
+        key = ("moves", run.name)
+        if key not in self._derived:
+            self._derived[key] = self._moves(run)
+        return list(self._derived[key])
+
+    def _moves(self, run: PlanRun) -> list[ProcessMove]:
         arm = self.arm
         closed, labels = arm.branch_closed_form, arm.closed_form_labels
         out: list[ProcessMove] = []
