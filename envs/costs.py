@@ -14,9 +14,11 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ikbranch_gym.envs.kinematics import Arm
+from ikbranch_gym.envs.kinematics.speeds import rated_speeds
 
 #: Default joint speed limits: rad/s for revolute joints, m/s for prismatic ones (typical
-#: of mid-size industrial arms' slower axes; override per joint with ``joint_speeds``).
+#: of mid-size industrial arms' slower axes; override per joint with ``joint_speeds``, or
+#: take a real arm's data sheet with ``joint_speeds="rated"``).
 DEFAULT_REVOLUTE_SPEED = 1.5
 DEFAULT_PRISMATIC_SPEED = 0.5
 
@@ -44,13 +46,15 @@ class TransitionCost:
         time_weight: float = 0.0,
         prismatic_scale: float = 1.0,
         joint_weights: ArrayLike | None = None,
-        joint_speeds: ArrayLike | None = None,
+        joint_speeds: ArrayLike | str | None = None,
     ) -> TransitionCost:
         revolute = arm.revolute_mask
         weights = _per_joint(joint_weights, arm.dof, 1.0, "joint_weights")
         scale = _non_negative(prismatic_scale, "prismatic_scale")
         weights = weights * np.where(revolute, 1.0, scale)
         default_speeds = np.where(revolute, DEFAULT_REVOLUTE_SPEED, DEFAULT_PRISMATIC_SPEED)
+        if isinstance(joint_speeds, str):
+            joint_speeds = _rated(arm, joint_speeds)
         speeds = _per_joint(joint_speeds, arm.dof, default_speeds, "joint_speeds")
         if np.any(speeds <= 0.0):
             raise ValueError("joint_speeds must be positive")
@@ -73,6 +77,17 @@ class TransitionCost:
     def time(self, q0: ArrayLike, q1: ArrayLike) -> np.ndarray:
         """(…,) move time with every joint at its speed limit, the slowest setting the pace."""
         return np.max(np.abs(np.asarray(q1) - np.asarray(q0)) / self.speeds, axis=-1)
+
+
+def _rated(arm: Arm, text: str) -> np.ndarray:
+    """The arm's data-sheet speeds for ``joint_speeds="rated"``."""
+    if text != "rated":
+        raise ValueError(f'joint_speeds must be a list of speeds or "rated", got {text!r}')
+    speeds = rated_speeds(getattr(arm, "base_arm", arm))
+    if speeds is None:
+        raise ValueError(f'joint_speeds="rated": the arm {arm.name} has no data-sheet speeds '
+                         "(envs/kinematics/speeds.py); give one speed per joint")
+    return speeds
 
 
 def _non_negative(value: float, name: str) -> float:

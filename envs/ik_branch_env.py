@@ -228,7 +228,7 @@ class IKBranchEnv(gym.Env):
     terminate_on_collision True                   end the episode on a colliding path
     prismatic_scale       1.0                     rad of travel per m of a prismatic joint
     joint_weights         None                    per-joint travel weights (None: all 1)
-    joint_speeds          None                    per-joint speed limits (None: 1.5 rad/s, 0.5 m/s)
+    joint_speeds          None                    list, None (1.5 rad/s, 0.5 m/s) or "rated"
     collision_resolution  0.01                    path-check clearance and step (m)
     collision_shapes      "drawn"                 "drawn", or "inscribed" (the earlier ids)
     scene_seed            0                       clutter seed (None: new every reset)
@@ -257,6 +257,8 @@ class IKBranchEnv(gym.Env):
     ===================== ======================= ===========================================
 
     ## Version history
+    - Same ids, same behaviour (2026-12-04): ``joint_speeds="rated"`` times moves at the
+      real arm's data-sheet joint speeds (KR 6 R700, IRB 2400/2600/4600, UR5e, UR10e).
     - Same ids, same behaviour (2026-12-04): process continuity for waypoint-file tasks,
       the new arguments ``max_joint_step`` and ``task_segments`` (off by default); waypoint
       files may carry a ``segment`` column; ``singularity_margin`` and ``shoulder_margin``
@@ -336,7 +338,7 @@ class IKBranchEnv(gym.Env):
         terminate_on_collision: bool = True,
         prismatic_scale: float = 1.0,
         joint_weights: list[float] | None = None,
-        joint_speeds: list[float] | None = None,
+        joint_speeds: list[float] | str | None = None,
         collision_resolution: float = 0.01,
         collision_shapes: str = "drawn",
         scene_seed: int | None = 0,

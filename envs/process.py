@@ -41,6 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ikbranch_gym.envs.jit import njit
+from ikbranch_gym.envs.kinematics import Arm
 
 #: The derived limit's least value and factor over the job's hardest segment.
 MIN_DERIVED_LIMIT = math.radians(10.0)
@@ -295,3 +296,71 @@ def _slerp(r0: np.ndarray, r1: np.ndarray, s: np.ndarray) -> np.ndarray:
     turns = (np.eye(3) + np.sin(angles)[:, None, None] * skew
              + (1.0 - np.cos(angles))[:, None, None] * (skew @ skew))  # Rodrigues
     return r0 @ turns
+
+
+#: A linear (LIN) move is followed by IK at most this far apart along the line.
+LIN_LENGTH_STEP = 0.002
+LIN_ANGLE_STEP = math.radians(1.0)
+
+
+@dataclass(frozen=True)
+class LinearPath:
+    """A LIN move q0 → q1 solved by IK along the line: ``samples`` (M, dof) the
+    configurations at M − 1 equal steps of the TCP's line and slerp, from q0 to q1, each in
+    q0's closed-form branch and the turn nearest the sample before; ``problem`` None when
+    the arm follows the whole line so, else what stops it (the samples then end there)."""
+
+    samples: np.ndarray
+    problem: str | None
+
+
+def linear_path(arm: Arm, q0: np.ndarray, q1: np.ndarray, configuration: int,
+                limit: float, tcp: np.ndarray | None = None) -> LinearPath:
+    """The configurations a controller's LIN move from ``q0`` to ``q1`` passes through,
+    sampled every ``LIN_LENGTH_STEP`` of the TCP's path and ``LIN_ANGLE_STEP`` of its
+    turn (``tcp`` (4, 4) the TCP in the fk frame). The arm keeps q0's closed-form branch
+    ``configuration`` (a controller's LIN keeps its status); a sample no configuration of
+    that branch reaches, a revolute step beyond ``limit`` between samples (a pass near a
+    singularity, where the joints whip) or an end in another turn than q1's is the
+    ``problem``. ``arm`` is the kinematic arm (``envs.kinematics.Arm``)."""
+    q0, q1 = np.asarray(q0, dtype=np.float64), np.asarray(q1, dtype=np.float64)
+    tcp = np.eye(4) if tcp is None else np.asarray(tcp, dtype=np.float64)
+    revolute = np.asarray(arm.revolute_mask)
+    start, end = arm.fk(q0) @ tcp, arm.fk(q1) @ tcp
+    length = float(np.linalg.norm(end[:3, 3] - start[:3, 3]))
+    relative = start[:3, :3].T @ end[:3, :3]
+    angle = math.acos(min(1.0, max(-1.0, (np.trace(relative) - 1.0) / 2.0)))
+    count = max(1, math.ceil(length / LIN_LENGTH_STEP), math.ceil(angle / LIN_ANGLE_STEP))
+    fractions = np.arange(1, count) / count
+    rotations = _slerp(start[:3, :3], end[:3, :3], fractions)
+    back = np.linalg.inv(tcp)
+    ik_rows, ik_ok = arm.ik(np.array([_pose(start[:3, 3] + s * (end[:3, 3] - start[:3, 3]),
+                                            r) @ back for s, r in zip(fractions, rotations,
+                                                                      strict=True)])
+                            if count > 1 else np.empty((0, 4, 4)))
+    closed = np.asarray(arm.branch_closed_form)
+    samples = [q0]
+    for i, (rows, ok) in enumerate(zip(ik_rows, ik_ok, strict=True)):
+        mine = ok & (closed == configuration)
+        where = f"{100.0 * fractions[i]:.1f} % along the line"
+        if not mine.any():
+            return LinearPath(np.array(samples), f"out of reach in its configuration {where}")
+        gaps = np.abs(rows[mine] - samples[-1])
+        best = int(np.argmin(gaps.max(axis=1)))
+        step = float(gaps[best][revolute].max(initial=0.0))
+        if step > limit:
+            return LinearPath(np.array(samples), f"a joint steps {math.degrees(step):.1f}° "
+                              f"between two samples {where} (a singularity on the line)")
+        samples.append(rows[mine][best])
+    last = float(np.abs(q1 - samples[-1])[revolute].max(initial=0.0))
+    if last > limit:
+        return LinearPath(np.array(samples), "the line arrives in another turn or "
+                          f"configuration than the waypoint's ({math.degrees(last):.1f}°)")
+    samples.append(q1)
+    return LinearPath(np.array(samples), None)
+
+
+def _pose(position: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+    pose = np.eye(4)
+    pose[:3, :3], pose[:3, 3] = rotation, position
+    return pose

@@ -128,6 +128,27 @@ def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
     ])
 
 
+def zyx_angles(rotation: ArrayLike) -> tuple[float, float, float]:
+    """(A, B, C) rad with ``rotation`` = Rz(A)·Ry(B)·Rx(C) (KUKA's A, B, C; ``rpy_matrix``'s
+    yaw, pitch, roll), B in [−π/2, π/2]. At B = ±π/2 only A ∓ C is defined: C is 0 there."""
+    m = np.asarray(rotation, dtype=np.float64)
+    cos_b = math.hypot(m[0, 0], m[1, 0])
+    b = math.atan2(-m[2, 0], cos_b)
+    if cos_b < 1e-12:
+        return math.atan2(-m[0, 1], m[1, 1]), b, 0.0
+    return math.atan2(m[1, 0], m[0, 0]), b, math.atan2(m[2, 1], m[2, 2])
+
+
+def rotation_vector(rotation: ArrayLike) -> np.ndarray:
+    """(3,) the axis times the angle (rad, in [0, π]) of ``rotation`` (UR's rx, ry, rz)."""
+    w, x, y, z = rotation_to_quaternion(rotation)  # w >= 0: the angle is at most π
+    sine = math.sqrt(x * x + y * y + z * z)
+    if sine < 1e-15:
+        return np.zeros(3)
+    angle = 2.0 * math.atan2(sine, w)
+    return np.array([x, y, z]) * (angle / sine)
+
+
 def axis_quaternion(axis: str, angle: float) -> np.ndarray:
     """Unit quaternion (w, x, y, z) of a turn by ``angle`` about the axis "x", "y" or "z"."""
     quaternion = np.zeros(4)

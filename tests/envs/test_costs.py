@@ -69,3 +69,37 @@ def test_travel_is_symmetric_and_zero_for_no_move():
     rng = np.random.default_rng(1)
     a, b = rng.uniform(-1, 1, (2, 4))
     assert cost.travel(a, b) == cost.travel(b, a) and cost.travel(a, a) == 0.0
+
+
+@pytest.mark.parametrize(("name", "degrees_per_second"), [
+    # Typed from the data sheets (and the ROS-Industrial / UR descriptions that carry them).
+    ("kuka_kr6_r700", (360, 300, 360, 381, 388, 615)),
+    ("abb_irb2400", (150, 150, 150, 360, 360, 450)),
+    ("abb_irb2600", (175, 175, 175, 360, 360, 500)),
+    ("abb_irb4600", (175, 175, 175, 250, 250, 360)),
+    ("ur5e", (180, 180, 180, 180, 180, 180)),
+    ("ur10e", (120, 120, 180, 180, 180, 180)),
+])
+def test_rated_speeds_are_the_data_sheets(name, degrees_per_second):
+    cost = TransitionCost.for_arm(make_arm(name), joint_speeds="rated")
+    np.testing.assert_allclose(np.degrees(cost.speeds), degrees_per_second, rtol=1e-12)
+    q1 = np.zeros(6)
+    q1[5] = np.radians(90.0)  # the last joint alone: its own speed sets the time
+    assert cost.time(np.zeros(6), q1) == pytest.approx(90.0 / degrees_per_second[5])
+
+
+def test_rated_speeds_follow_the_arm_inside_a_free_tool_axis():
+    from ikbranch_gym.envs.tool_axis import ToolAxisArm
+
+    arm = ToolAxisArm(make_arm("kuka_kr6_r700"), None, np.radians([-30.0, 0.0, 30.0]))
+    cost = TransitionCost.for_arm(arm, joint_speeds="rated")
+    np.testing.assert_allclose(np.degrees(cost.speeds), (360, 300, 360, 381, 388, 615))
+
+
+@pytest.mark.parametrize(("arm", "speeds", "message"), [
+    ("anthropomorphic", "rated", "anthropomorphic has no data-sheet speeds"),
+    ("kuka_kr6_r700", "fast", 'a list of speeds or "rated"'),
+])
+def test_rated_speeds_refuse_what_has_no_data_sheet(arm, speeds, message):
+    with pytest.raises(ValueError, match=message):
+        TransitionCost.for_arm(make_arm(arm), joint_speeds=speeds)

@@ -21,6 +21,7 @@ from gymnasium.utils.env_checker import data_equivalence
 from ikbranch_gym.agents.evaluation import build_policy
 from ikbranch_gym.envs.ik_branch_env import IKBranchEnv
 from ikbranch_gym.envs.kinematics import make_arm
+from ikbranch_gym.envs.kinematics.rotations import rot_x
 from ikbranch_gym.envs.process import (
     MAX_LIMIT,
     UNKNOWN,
@@ -29,6 +30,7 @@ from ikbranch_gym.envs.process import (
     followable,
     inside_moves,
     least_limits,
+    linear_path,
     segment_index,
 )
 from ikbranch_gym.envs.tasks.waypoint_file import write_waypoints
@@ -375,3 +377,59 @@ def test_slerp_turns_about_the_fixed_axis_also_at_half_a_turn():
         turned = _slerp(start, start @ rot_x(angle), np.array([0.0, 0.3, 1.0]))
         for got, fraction in zip(turned, (0.0, 0.3, 1.0), strict=True):
             np.testing.assert_allclose(got, start @ rot_x(angle * fraction), atol=1e-12)
+
+
+def _kr6_start():
+    """A KR 6 R700 configuration with its wrist 5° from singular, and its closed form."""
+    arm = make_arm("kuka_kr6_r700")
+    q0 = np.array([0.2, -1.4, 1.8, 0.5, math.radians(5.0), 0.3])
+    rows, ok = arm.ik(arm.fk(q0))
+    k = int(np.argmin(np.where(ok, np.abs(rows - q0).max(axis=1), np.inf)))
+    assert np.abs(rows[k] - q0).max() < 1e-9
+    return arm, q0, int(arm.branch_closed_form[k])
+
+
+def test_a_linear_path_follows_the_line_in_its_configuration():
+    arm, q0, configuration = _kr6_start()
+    tcp = np.eye(4)
+    tcp[:3, 3] = [0.0, 0.03, 0.12]  # an off-axis TCP: the flange does not move on a line
+    end = arm.fk(q0) @ tcp
+    end[:3, 3] += [0.04, -0.05, 0.03]
+    end[:3, :3] = end[:3, :3] @ rot_x(0.2)
+    rows, ok = arm.ik(end @ np.linalg.inv(tcp))
+    mine = [r for r, o, c in zip(rows, ok, arm.branch_closed_form, strict=True)
+            if o and c == configuration]
+    q1 = min(mine, key=lambda r: np.abs(r - q0).max())
+    path = linear_path(arm, q0, q1, configuration, math.radians(10.0), tcp)
+    assert path.problem is None
+    samples = path.samples
+    assert np.array_equal(samples[0], q0) and np.array_equal(samples[-1], q1)
+    poses = arm.fk(samples) @ tcp
+    start = arm.fk(q0) @ tcp
+    count = len(samples) - 1  # 2 mm and 1° at most per step: 71 mm and 11.5° here
+    assert count == math.ceil(np.linalg.norm([0.04, -0.05, 0.03]) / 0.002)
+    for i, pose in enumerate(poses):
+        s = i / count
+        np.testing.assert_allclose(pose[:3, 3], start[:3, 3] + s * (end[:3, 3] - start[:3, 3]),
+                                   atol=1e-12)
+        np.testing.assert_allclose(pose[:3, :3], start[:3, :3] @ rot_x(0.2 * s), atol=1e-12)
+    steps = np.abs(np.diff(samples, axis=0)).max(axis=1)
+    assert steps.max() < math.radians(5.0)  # no whip (the wrist starts 5° from singular)
+
+
+def test_a_linear_path_names_a_singularity_on_the_line_and_another_turn():
+    arm, q0, configuration = _kr6_start()
+    across = q0.copy()  # the wrist turned over: the line between passes A5 = 0
+    across[3] += math.pi
+    across[5] -= math.pi
+    rows, ok = arm.ik(arm.fk(across))
+    q1 = next(r for r, o, c in zip(rows, ok, arm.branch_closed_form, strict=True)
+              if o and c == configuration)
+    path = linear_path(arm, q0, q1, configuration, math.radians(10.0))
+    assert path.problem.startswith("a joint steps") and "singularity" in path.problem
+    assert 1 < len(path.samples) < 80  # the samples stop where it breaks
+    turned = q0.copy()
+    turned[5] += 2.0 * math.pi  # the same pose, A6 a turn on
+    path = linear_path(arm, q0, turned, configuration, math.radians(10.0))
+    assert path.problem == ("the line arrives in another turn or configuration than the "
+                            "waypoint's (360.0°)")

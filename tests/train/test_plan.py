@@ -441,6 +441,13 @@ BAD_INPUTS = [
     (["--tool-axis", "90"], "--tool-axis '90': give RANGE:STEP in degrees"),
     (["--tool-axis", "200:10"], "tool_axis range must lie in [0, π] rad"),
     (["--tool-axis", "180:1"], "--tool-axis '180:1': tool_axis samples 360 angles; at most 73"),
+    (["--joint-speeds", "rated"], "--joint-speeds rated: anthropomorphic has no data-sheet"),
+    (["--joint-speeds", "90,90"], "--joint-speeds '90,90': 2 speeds for 6 joints"),
+    (["--joint-speeds", "90,90,90,90,90,0"], "every speed must be positive"),
+    (["--joint-speeds", "fast"], "give 'rated', 'generic' or 6 comma-separated speeds"),
+    (["--env-kwargs", '{"joint_speeds": "rated"}'], "--env-kwargs may not set joint_speeds"),
+    (["--lin"], "--lin shapes a controller program: give --krl, --rapid or --urscript"),
+    (["--program-targets", "poses"], "--program-targets shapes a controller program"),
     (["--out", "plan.txt"], "--out plan.txt: the file name must end in .csv"),
     (["--out", "absent/plan.csv"], "folder absent does not exist"),
     (["--out", "paper.csv"], "--out paper.csv would overwrite an input file"),
@@ -606,6 +613,14 @@ def test_deburring_example_keeps_the_configuration_with_every_planner(cell, caps
         assert np.abs(np.diff(q, axis=0)).max() <= limit  # every step within the limit
         assert [step["air_move"] for step in steps] == [True] + [False] * 61
     assert math.degrees(-optimum) == pytest.approx(190.97, abs=0.005)
+    # Moves are timed at the KR 6 R700's data-sheet speeds (°/s, typed from the sheet).
+    rated = np.radians([360.0, 300.0, 360.0, 381.0, 388.0, 615.0])
+    assert record["inputs"]["joint_speeds"] == {"source": "rated", "values": list(rated)}
+    steps = record["planners"]["dp_oracle"]["steps"]
+    q = np.array([step["q"] for step in steps])
+    times = [step["time"] for step in steps[1:]]
+    assert times == pytest.approx(list((np.abs(np.diff(q, axis=0)) / rated).max(axis=1)),
+                                  rel=1e-12)
     rows = rows_of(cell / "deburr.csv")  # 10 mm steps follow the line within 0.03 mm
     assert rows[0]["line_deviation_mm"] == "" and all(row["off_line"] == "0" for row in rows[1:])
     assert {row["kuka_s"] for row in rows} == {"2"}  # KUKA's status of front/elbow-up/wrist+

@@ -17,7 +17,7 @@ from ikbranch_gym.envs.files import write_all_atomically
 from . import __doc__ as DESCRIPTION
 from .animation import animation_frames, gif_bytes, render_frames
 from .chart import map_png
-from .controllers import krl, rapid, urscript
+from .controllers import TARGETS, krl, rapid, refused_lines, urscript
 from .outputs import plan_csv, plan_json, summary_table
 from .playing import Plan, plan
 from .request import PLANNERS, PlanInputError, output_paths, request_from_args
@@ -88,6 +88,10 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--line-tolerance", type=float, default=1.0, metavar="MM",
                    help="flag moves inside a segment whose TCP leaves the straight line by "
                         "more than this (mm, default 1)")
+    p.add_argument("--joint-speeds", metavar="rated|generic|V1,…",
+                   help="the joint speeds moves are timed at: rated (the arm's data sheet; "
+                        "the default where there is one), generic (1.5 rad/s, 0.5 m/s) or "
+                        "one speed per joint (deg/s, mm/s)")
     p.add_argument("--resolution", type=float, default=0.01, metavar="M",
                    help="collision-check clearance and step along paths (m, default 0.01)")
     p.add_argument("--env-kwargs", metavar="JSON",
@@ -103,6 +107,14 @@ def parser() -> argparse.ArgumentParser:
                    help="an ABB RAPID module of the plan (MoveAbsJ to jointtargets)")
     p.add_argument("--urscript", metavar="NAME.script",
                    help="a URScript program of the plan (movej to joint lists)")
+    p.add_argument("--program-targets", choices=TARGETS, default="joints",
+                   help="the programs' targets: joints (E6AXIS, jointtarget, joint lists; "
+                        "default) or poses (E6POS with S and T, robtarget with confdata, "
+                        "p[…] solved nearest the planned joints); joint moves either way")
+    p.add_argument("--lin", action="store_true",
+                   help="the programs move linearly (LIN, MoveL, movel) inside process "
+                        "segments, each line checked first (IK along it, collisions); "
+                        "a move whose line fails stays a joint move, named on stderr")
     p.add_argument("--map", metavar="FILE",
                    help="a PNG map: waypoints × branches coloured by state, the plan drawn")
     p.add_argument("--gif-size", type=int, nargs=2, default=(480, 360),
@@ -137,6 +149,16 @@ def _fail(message: str) -> int:
     return EXIT_INPUT
 
 
+def _check_program_form(args: argparse.Namespace, outputs: dict[str, Path]) -> None:
+    """``--lin`` and ``--program-targets`` only with a program to shape."""
+    programs = [o for o in ("--krl", "--rapid", "--urscript") if o in outputs]
+    for option, given in (("--lin", args.lin),
+                          ("--program-targets", args.program_targets != "joints")):
+        if given and not programs:
+            raise PlanInputError(f"{option} shapes a controller program: give --krl, "
+                                 "--rapid or --urscript")
+
+
 def _warn_off_line(result: Plan) -> None:
     """A warning on stderr naming the chosen plan's moves that leave the straight line."""
     chosen = result.chosen_run
@@ -148,7 +170,7 @@ def _warn_off_line(result: Plan) -> None:
               f"the straight line by more than {1000 * result.line_tolerance:g} mm (the most, "
               f"{1000 * worst:.2f} mm, into waypoint {waypoint}): moved in joint space, as "
               "the plan is checked, the tool does not follow the line there; add points, or "
-              "check the line moves on the controller", file=sys.stderr)
+              "write the program with --lin (linear moves, each line checked)", file=sys.stderr)
 
 
 def _outputs(result: Plan, outputs: dict[str, Path], args: argparse.Namespace,
@@ -167,15 +189,17 @@ def _outputs(result: Plan, outputs: dict[str, Path], args: argparse.Namespace,
         files[outputs["--gif"]] = gif_bytes(images, [f.duration for f in frames])
     if "--map" in outputs:
         files[outputs["--map"]] = map_png(result)
+    form = {"targets": args.program_targets, "linear": args.lin}
     if "--krl" in outputs:
-        src, dat = krl(result, outputs["--krl"].stem)
+        src, dat = krl(result, outputs["--krl"].stem, **form)
         files[outputs["--krl"]] = src.encode("ascii")
         files[outputs["--krl (.dat)"]] = dat.encode("ascii")
     if "--rapid" in outputs:
-        files[outputs["--rapid"]] = rapid(result, outputs["--rapid"].stem).encode("ascii")
-    if "--urscript" in outputs:
-        files[outputs["--urscript"]] = urscript(result, outputs["--urscript"].stem).encode(
+        files[outputs["--rapid"]] = rapid(result, outputs["--rapid"].stem, **form).encode(
             "ascii")
+    if "--urscript" in outputs:
+        files[outputs["--urscript"]] = urscript(result, outputs["--urscript"].stem,
+                                                **form).encode("ascii")
     return files
 
 
@@ -192,6 +216,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 raise PlanInputError(f"{option} must be a positive number, got {value!r}")
         request = request_from_args(args)
         outputs = output_paths(args, request)
+        _check_program_form(args, outputs)
         result = plan(request)
         files = _outputs(result, outputs, args, argv)
         write_all_atomically(files)  # every file or none
@@ -217,6 +242,11 @@ def main(argv: Sequence[str] | None = None) -> int:
           f"travel {math.degrees(chosen.travel):.2f}°, written to "
           + ", ".join(str(path) for path in files))
     _warn_off_line(result)
+    refused = refused_lines(result) if args.lin else []
+    if refused:
+        print(f"ikbranch plan: warning: {len(refused)} process moves stay joint moves in the "
+              "program (--lin): their line fails the check:\n  " + "\n  ".join(refused),
+              file=sys.stderr)
     if result.skipped:
         print(f"ikbranch plan: warning: {len(result.skipped)} rows no branch reaches were "
               "left out (--skip-unreachable):\n  " + "\n  ".join(result.skipped),

@@ -268,6 +268,10 @@ def plan_json(plan: Plan, argv: Sequence[str] | None = None) -> dict[str, Any]:
             "process": _process_record(plan),
             "allowed_contacts": [list(pair) for pair in plan.allowed_contacts],
             "skipped": list(plan.skipped),
+            "joint_speeds": {
+                "source": ("rated" if request.joint_speeds == "rated" else "generic"
+                           if request.joint_speeds is None else "given"),
+                "values": [float(v) for v in np.asarray(plan.joint_speeds)]},
             "planners": list(request.planners),
             "env_kwargs": request.make_kwargs(),
             "versions": versions(("torch", "stable-baselines3", "sb3-contrib") if models

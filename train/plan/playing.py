@@ -10,7 +10,13 @@ import numpy as np
 
 from ikbranch_gym.agents.evaluation import ORACLE, run_episode
 from ikbranch_gym.envs.kinematics.singularities import has_singularity_rules, singularity_margins
-from ikbranch_gym.envs.process import MAX_LIMIT, largest_steps, line_deviation
+from ikbranch_gym.envs.process import (
+    MAX_LIMIT,
+    LinearPath,
+    largest_steps,
+    line_deviation,
+    linear_path,
+)
 
 from .request import PlanRequest, make_env
 
@@ -24,6 +30,26 @@ SEED = 0
 
 
 # --------------------------------------------------------------------------- playing
+@dataclass(frozen=True)
+class LinearMove:
+    """A process move checked as the controller's linear move (``--lin``): the IK samples
+    along the line (``envs.process.linear_path``), whether the joint moves between them
+    collide (the env's exact path check), and how far those joint moves' TCP leaves the
+    line (m) and its slerp (rad): the checked path's distance from the controller's."""
+
+    path: LinearPath
+    collision: bool
+    deviation: float
+    rotation: float
+
+    @property
+    def problem(self) -> str | None:
+        """Why the move cannot run as a LIN (None: it can)."""
+        if self.path.problem is not None:
+            return self.path.problem
+        return "the line collides" if self.collision else None
+
+
 @dataclass(frozen=True)
 class Step:
     """One step of a plan: the move into ``waypoint`` with ``branch``; ``q`` (dof,) is
@@ -212,6 +238,8 @@ class Plan:
     tool: Any = None  # the Tool, if any
     #: The geom-name pairs left out of the collision checks (``--allow-contact``).
     allowed_contacts: tuple[tuple[str, str], ...] = ()
+    #: (dof,) the joint speeds every move is timed at (rad/s, m/s).
+    joint_speeds: np.ndarray | None = None
     #: ``moves`` and ``clearances`` per run name: each output asks for them again.
     _derived: dict[tuple[str, str], Any] = field(default_factory=dict, repr=False)
 
@@ -231,6 +259,40 @@ class Plan:
             data = mujoco.MjData(self.model)
             self._derived[key] = [clearance(self.model, data, step.q, pairs, CLEARANCE_RANGE)
                                   for step in run.reached]
+        return list(self._derived[key])
+
+    def linear_moves(self, run: PlanRun | None = None) -> list[LinearMove | None]:
+        """Per row of ``run`` (default the chosen planner's): the move as a linear move,
+        checked; None for the first move and air moves (joint moves)."""
+        from ikbranch_gym.envs.models.collision import CollisionChecker
+
+        run = self.chosen_run if run is None else run
+        key = ("linear", run.name)
+        if key not in self._derived:
+            kinematic = getattr(self.arm, "base_arm", self.arm)
+            checker = CollisionChecker(self.model, dof=kinematic.dof,
+                                       resolution=self.request.resolution)
+            tcp = None if self.tool is None else self.tool.tcp
+            closed = self.arm.branch_closed_form
+            found: list[LinearMove | None] = []
+            previous: Step | None = None
+            for step, move in zip(run.reached, self.moves(run), strict=True):
+                if previous is None or move.air_move:
+                    found.append(None)
+                else:
+                    path = linear_path(kinematic, previous.q, step.q,
+                                       int(closed[previous.branch]), self.limit, tcp)
+                    collision, deviation, rotation = False, 0.0, 0.0
+                    if path.problem is None:
+                        collision = bool(checker.paths_collide(path.samples[:-1],
+                                                               path.samples[1:]).any())
+                        for a, b in zip(path.samples[:-1], path.samples[1:], strict=True):
+                            off, turn = line_deviation(kinematic.fk, a, b,
+                                                       kinematic.revolute_mask, tcp)
+                            deviation, rotation = max(deviation, off), max(rotation, turn)
+                    found.append(LinearMove(path, collision, deviation, rotation))
+                previous = step
+            self._derived[key] = found
         return list(self._derived[key])
 
     @property
@@ -346,4 +408,5 @@ def plan(request: PlanRequest) -> Plan:
         singularities_avoided=request.avoid_singularities, line_tolerance=request.line_tolerance,
         scene=base.scene_file, tool=base.tool,
         allowed_contacts=tuple(tuple(pair) for pair in base.allowed_contacts),
+        joint_speeds=np.array(base.pricer.cost.speeds),
     )

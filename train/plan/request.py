@@ -29,7 +29,7 @@ RESERVED_ENV_KWARGS = ("arm", "arm_params", "scene", "scene_file", "scene_option
                        "task_file", "task_start", "task_points_abc", "task_segments",
                        "task_units", "task_columns", "task_skip_unreachable",
                        "max_joint_step", "singularity_margin", "shoulder_margin",
-                       "tool_axis", "allowed_contacts", "tool",
+                       "tool_axis", "allowed_contacts", "tool", "joint_speeds",
                        "collision_resolution", "n_waypoints", "render_mode", "width", "height")
 
 
@@ -78,6 +78,9 @@ class PlanRequest:
     allowed_contacts: tuple[tuple[str, str], ...] = ()
     #: Leave out the rows no branch reaches, and plan the rest.
     skip_unreachable: bool = False
+    #: The joint speeds moves are timed at: "rated" (the arm's data sheet), (dof,) rad/s
+    #: or m/s, or None (the env's generic 1.5 rad/s, 0.5 m/s).
+    joint_speeds: str | tuple[float, ...] | None = None
 
     def make_kwargs(self) -> dict[str, Any]:
         """The :class:`~envs.ik_branch_env.IKBranchEnv` arguments (JSON-able)."""
@@ -95,6 +98,9 @@ class PlanRequest:
             "task_columns": list(self.extra_columns) or None,
             "max_joint_step": self.max_joint_step,
         }
+        if self.joint_speeds is not None:
+            kwargs["joint_speeds"] = (self.joint_speeds if isinstance(self.joint_speeds, str)
+                                      else list(self.joint_speeds))
         if self.tool_axis is not None:
             kwargs["tool_axis"] = list(self.tool_axis)
         if self.skip_unreachable:
@@ -243,6 +249,35 @@ def parse_max_joint_step(text: str) -> float | str | None:
     return math.radians(degrees)
 
 
+def parse_joint_speeds(text: str | None, arm: Arm) -> str | tuple[float, ...] | None:
+    """``--joint-speeds``: ``rated``, ``generic`` or one speed per joint (deg/s, mm/s for a
+    prismatic joint); default ``rated`` where the arm has a data sheet, else ``generic``.
+    SI out."""
+    from ikbranch_gym.envs.kinematics.speeds import rated_speeds
+
+    word = "rated" if text is None and rated_speeds(arm) is not None else (text or "generic")
+    word = word.strip()
+    if word.lower() == "generic":
+        return None
+    if word.lower() == "rated":
+        if rated_speeds(arm) is None:
+            raise PlanInputError(f"--joint-speeds rated: {arm.name} has no data-sheet speeds; "
+                                 f"give {arm.dof} speeds (deg/s, mm/s) or 'generic'")
+        return "rated"
+    try:
+        values = [float(part) for part in word.split(",")]
+    except ValueError:
+        raise PlanInputError(f"--joint-speeds {text!r}: give 'rated', 'generic' or {arm.dof} "
+                             "comma-separated speeds (deg/s, mm/s)") from None
+    if len(values) != arm.dof:
+        raise PlanInputError(f"--joint-speeds {text!r}: {len(values)} speeds for {arm.dof} "
+                             "joints")
+    if not all(math.isfinite(v) and v > 0.0 for v in values):
+        raise PlanInputError(f"--joint-speeds {text!r}: every speed must be positive")
+    return tuple(math.radians(v) if kind == "revolute" else v / 1000.0
+                 for v, kind in zip(values, arm.joint_types, strict=True))
+
+
 def parse_allowed_contact(text: str) -> tuple[str, str]:
     """``--allow-contact A:B``: two geom names or ``fnmatch`` patterns."""
     parts = text.split(":")
@@ -387,8 +422,8 @@ def request_from_args(args: argparse.Namespace) -> PlanRequest:
     reserved = sorted(set(env_kwargs) & set(RESERVED_ENV_KWARGS))
     if reserved:
         raise PlanInputError(f"--env-kwargs may not set {', '.join(reserved)}: the command "
-                             "sets them from --arm, --arm-params, --waypoints, --points-abc, "
-                             "--scene, --scene-options, --tool, --start and --resolution")
+                             "sets them from its own options (--arm, --waypoints, --scene, "
+                             "--tool, --joint-speeds, …; see --help)")
     if args.points_abc is not None and any(not math.isfinite(v) for v in args.points_abc):
         raise PlanInputError(f"--points-abc must be finite lengths in mm, got {args.points_abc}")
     _check_singularity_options(args, arm)
@@ -403,6 +438,7 @@ def request_from_args(args: argparse.Namespace) -> PlanRequest:
         raise PlanInputError(f"--line-tolerance must be a length >= 0 in mm, got "
                              f"{args.line_tolerance!r}")
     return PlanRequest(
+        joint_speeds=parse_joint_speeds(args.joint_speeds, arm),
         skip_unreachable=bool(args.skip_unreachable),
         allowed_contacts=tuple(parse_allowed_contact(text)
                                for text in args.allowed_contacts or ()),

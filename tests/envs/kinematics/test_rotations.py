@@ -21,7 +21,9 @@ from ikbranch_gym.envs.kinematics.rotations import (
     rot_y,
     rot_z,
     rotation_to_quaternion,
+    rotation_vector,
     rpy_matrix,
+    zyx_angles,
 )
 
 N = 300
@@ -139,3 +141,26 @@ def test_the_rotation_helpers_are_defined_once():
         tree = ast.parse((package / name).read_text())
         defined = {node.name for node in ast.walk(tree) if isinstance(node, ast.FunctionDef)}
         assert not defined & HELPERS, f"{name} defines {sorted(defined & HELPERS)}"
+
+
+def test_zyx_angles_rebuild_the_rotation_and_are_scipys():
+    rng = np.random.default_rng(5)
+    rotations = [*quaternion_matrix(_unit_quaternions(rng)), *_special_rotations(),
+                 rot_y(np.pi / 2) @ rot_x(0.3), rot_z(0.4) @ rot_y(-np.pi / 2)]
+    for r in rotations:
+        a, b, c = zyx_angles(r)
+        assert -np.pi / 2 <= b <= np.pi / 2
+        np.testing.assert_allclose(rot_z(a) @ rot_y(b) @ rot_x(c), r, atol=1e-12)
+    # Away from B = ±90° the angles are unique: scipy's intrinsic Z-Y-X ones.
+    r = quaternion_matrix(_unit_quaternions(rng, 50))
+    ours = np.array([zyx_angles(m) for m in r])
+    np.testing.assert_allclose(ours, Rotation.from_matrix(r).as_euler("ZYX"), atol=1e-12)
+
+
+def test_rotation_vector_is_scipys():
+    rng = np.random.default_rng(6)
+    rotations = [*quaternion_matrix(_unit_quaternions(rng)), np.eye(3), rot_x(1e-12)]
+    for r in rotations:
+        vector = rotation_vector(r)
+        assert np.linalg.norm(vector) <= np.pi + 1e-12
+        np.testing.assert_allclose(Rotation.from_rotvec(vector).as_matrix(), r, atol=1e-12)
