@@ -27,7 +27,7 @@ from ikbranch_gym.envs.task_frame import FramedArm, TaskFrame
 from ikbranch_gym.envs.tasks import TASKS, Task
 from ikbranch_gym.envs.tasks.file_task import FileTask
 from ikbranch_gym.envs.tasks.waypoint_file import read_waypoints
-from ikbranch_gym.envs.tool_axis import ToolAxisArm, axis_angles
+from ikbranch_gym.envs.tool_axis import ToolAxisArm, axis_angles, tilt_directions
 from ikbranch_gym.envs.tools import Tool
 
 if TYPE_CHECKING:
@@ -60,13 +60,16 @@ def _check_choices(arm: str, scene: str, task: str, render_mode: str | None) -> 
 
 
 def _free_tool_axis(arm: Arm, tool: Tool | None, task: str, tool_axis: Any) -> Arm:
-    """``arm`` with its tool free about the TCP's z axis (``tool_axis`` [range, step])."""
+    """``arm`` with its tool free about the TCP's z axis (``tool_axis`` [range, step], or
+    [range, step, cone, cone_step] with a tilt cone)."""
     if task != "file":
         raise ValueError("tool_axis is for task='file'")
-    if not (isinstance(tool_axis, list | tuple) and len(tool_axis) == 2):
-        raise ValueError(f"tool_axis must be [range, step] in rad, got {tool_axis!r}")
+    if not (isinstance(tool_axis, list | tuple) and len(tool_axis) in (2, 4)):
+        raise ValueError("tool_axis must be [range, step] or [range, step, cone, cone_step] "
+                         f"in rad, got {tool_axis!r}")
+    tilts = None if len(tool_axis) == 2 else tilt_directions(*tool_axis[2:])
     return cast(Arm, ToolAxisArm(arm, None if tool is None else tool.tcp,
-                                 axis_angles(*tool_axis)))
+                                 axis_angles(*tool_axis[:2]), tilts))
 
 
 def _check_job_options(arm: Arm, task: str, max_joint_step: Any, singularity_margin: Any,
@@ -245,7 +248,7 @@ class IKBranchEnv(gym.Env):
     max_joint_step        None                    process continuity: step limit (rad), "auto"
     singularity_margin    None                    no branch this near a wrist/elbow singular (rad)
     shoulder_margin       None                    no branch this near the shoulder singularity (m)
-    tool_axis             None                    [range, step] (rad): the tool free about its axis
+    tool_axis             None                    [range, step(, cone, cone_step)] rad: free axis
     allowed_contacts      None                    geom pairs (name patterns) that may touch
     scene_file            None                    ``scene="file"``: an MJCF file of the cell
     scene_options         None                    base_pos/_quat/_rpy, floor, decompose, …
@@ -258,7 +261,9 @@ class IKBranchEnv(gym.Env):
 
     ## Version history
     - Same ids, same behaviour (2026-12-04): ``joint_speeds="rated"`` times moves at the
-      real arm's data-sheet joint speeds (KR 6 R700, IRB 2400/2600/4600, UR5e, UR10e).
+      real arm's data-sheet joint speeds (KR 6 R700, IRB 2400/2600/4600, UR5e, UR10e);
+      ``tool_axis`` takes a tilt cone, [range, step, cone, cone_step]: the tool's axis may
+      also tilt by up to the cone in any direction.
     - Same ids, same behaviour (2026-12-04): process continuity for waypoint-file tasks,
       the new arguments ``max_joint_step`` and ``task_segments`` (off by default); waypoint
       files may carry a ``segment`` column; ``singularity_margin`` and ``shoulder_margin``

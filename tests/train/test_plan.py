@@ -446,6 +446,10 @@ BAD_INPUTS = [
     (["--joint-speeds", "90,90,90,90,90,0"], "every speed must be positive"),
     (["--joint-speeds", "fast"], "give 'rated', 'generic' or 6 comma-separated speeds"),
     (["--env-kwargs", '{"joint_speeds": "rated"}'], "--env-kwargs may not set joint_speeds"),
+    (["--tool-tilt", "10"], "--tool-tilt '10': give CONE:STEP in degrees"),
+    (["--tool-tilt", "100:10"], "tool tilt cone must lie in [0, π/2] rad"),
+    (["--tool-axis", "180:15", "--tool-tilt", "10:5"],
+     "--tool-tilt '10:5': with --tool-axis that is 504 tool orientations; at most 73"),
     (["--lin"], "--lin shapes a controller program: give --krl, --rapid or --urscript"),
     (["--program-targets", "poses"], "--program-targets shapes a controller program"),
     (["--out", "plan.txt"], "--out plan.txt: the file name must end in .csv"),
@@ -502,6 +506,16 @@ def test_bad_input_is_a_clear_message_and_writes_nothing(bad_files, capsys, extr
     assert fragment in captured.err
     assert "Traceback" not in captured.err and captured.out == ""
     assert _listing(bad_files) == before  # no output, no temporary file
+
+
+def test_a_tilt_cone_plans_a_row_a_fixed_tool_cannot_reach(bad_files):
+    """Every branch of the file's second row needs A5 = 125° (5° beyond the limit): a 10°
+    cone reaches it, tilted, and the CSV says by how much."""
+    assert main(["--arm", "kuka_kr6_r700", "--waypoints", "beyond_limits.csv",
+                 "--tool-tilt", "10:10", "--out", "plan.csv"]) == EXIT_OK
+    rows = rows_of(bad_files / "plan.csv")
+    assert len(rows) == 2 and float(rows[1]["tool_tilt_deg"]) == pytest.approx(10.0)
+    assert "/tilt10@" in rows[1]["label"]
 
 
 def test_argparse_errors_exit_2(bad_files, capsys):

@@ -85,6 +85,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--tool-axis", metavar="RANGE:STEP",
                    help="a round tool free about its TCP z axis: every STEP degrees within "
                         "±RANGE (e.g. 180:15); the plan chooses the angle with the branch")
+    p.add_argument("--tool-tilt", metavar="CONE:STEP",
+                   help="the tool's axis may also tilt by up to CONE degrees in any "
+                        "direction, sampled every STEP degrees (e.g. 10:5)")
     p.add_argument("--line-tolerance", type=float, default=1.0, metavar="MM",
                    help="flag moves inside a segment whose TCP leaves the straight line by "
                         "more than this (mm, default 1)")

@@ -66,7 +66,8 @@ def controller_values(arm: Any, q: np.ndarray) -> list[int]:
 def csv_columns(arm: Arm, extra: Sequence[str] = ()) -> list[str]:
     names, kinds = arm.joint_names, arm.joint_types
     return (["waypoint", "row", "name", "segment", "branch", "label", "configuration",
-             "tool_angle_deg", *controller_columns(arm), *names,
+             "tool_angle_deg", "tool_tilt_deg", "tool_tilt_azimuth_deg",
+             *controller_columns(arm), *names,
              *(f"{n}_{_unit_suffix(k)}" for n, k in zip(names, kinds, strict=True)),
              "travel_rad", "travel_deg", "time_s", "collision", "max_step_deg", "air_move",
              "reconfiguration", "wrist_margin_deg", "elbow_margin_deg", "shoulder_margin_mm",
@@ -79,6 +80,14 @@ def tool_angle(arm: Any, branch: int) -> float:
     """The tool's angle about its axis in ``branch`` (rad; 0 without a free tool axis)."""
     angles = getattr(arm, "branch_angles", None)
     return 0.0 if angles is None else float(angles[branch])
+
+
+def tool_tilt(arm: Any, branch: int) -> tuple[float, float]:
+    """The tilt of the tool's axis in ``branch`` and its azimuth (rad; 0, 0 untilted)."""
+    tilts = getattr(arm, "branch_tilts", None)
+    if tilts is None:
+        return 0.0, 0.0
+    return float(tilts[branch]), float(arm.branch_azimuths[branch])
 
 
 def _line(move: ProcessMove) -> list[str]:
@@ -113,6 +122,7 @@ def plan_csv(plan: Plan, run: PlanRun | None = None) -> str:
             step.waypoint, plan.rows[step.waypoint], plan.names[step.waypoint], move.segment,
             step.branch, step.label,
             move.configuration, repr(math.degrees(tool_angle(arm, step.branch))),
+            *(repr(math.degrees(v)) for v in tool_tilt(arm, step.branch)),
             *controller_values(arm, step.q),
             *(repr(float(v)) for v in step.q),
             *(repr(v) for v in _display(step.q, arm.joint_types)),
@@ -232,6 +242,7 @@ def plan_json(plan: Plan, argv: Sequence[str] | None = None) -> dict[str, Any]:
                     target = arm.branch_pose(target, step.branch)
                 entry["fk_residual"] = float(np.abs(fk - target).max())
                 entry["tool_angle"] = tool_angle(arm, step.branch)
+                entry["tool_tilt"], entry["tool_tilt_azimuth"] = tool_tilt(arm, step.branch)
                 entry["controller_configuration"] = dict(zip(
                     controller_columns(arm), controller_values(arm, step.q), strict=True))
                 gap, pair = next(gaps)

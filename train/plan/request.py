@@ -68,8 +68,9 @@ class PlanRequest:
     #: are flagged.
     line_tolerance: float = 0.001
     #: A free tool axis: (range, step) in rad, the tool turned about its axis by every
-    #: multiple of step within ±range (None: fixed).
-    tool_axis: tuple[float, float] | None = None
+    #: multiple of step within ±range, and with a tilt cone (range, step, cone, cone_step)
+    #: (None: fixed).
+    tool_axis: tuple[float, ...] | None = None
     #: The unit of the file's x, y, z ("m", "mm"; None: its format's), and the further
     #: columns it carries, passed through to the plan's CSV.
     units: str | None = None
@@ -287,8 +288,29 @@ def parse_allowed_contact(text: str) -> tuple[str, str]:
     return parts[0].strip(), parts[1].strip()
 
 
-def parse_tool_axis(text: str | None) -> tuple[float, float] | None:
-    """``--tool-axis RANGE:STEP`` (degrees): (range, step) in rad, checked."""
+def parse_tool_axis(text: str | None, tilt: str | None = None) -> tuple[float, ...] | None:
+    """``--tool-axis RANGE:STEP`` and ``--tool-tilt CONE:STEP`` (degrees): (range, step)
+    or (range, step, cone, cone_step) in rad, checked."""
+    if tilt is not None:
+        from ikbranch_gym.envs.tool_axis import MAX_SAMPLES, axis_angles, tilt_directions
+
+        spin = parse_tool_axis(text) or (0.0, math.pi)
+        parts = tilt.split(":")
+        try:
+            if len(parts) != 2:
+                raise ValueError
+            cone, step = (math.radians(float(part)) for part in parts)
+        except ValueError:
+            raise PlanInputError(f"--tool-tilt {tilt!r}: give CONE:STEP in degrees, e.g. "
+                                 "10:5 (tilts of 5° and 10° around the axis)") from None
+        try:
+            count = len(axis_angles(*spin)) * len(tilt_directions(cone, step))
+        except ValueError as exc:
+            raise PlanInputError(f"--tool-tilt {tilt!r}: {exc}") from None
+        if count > MAX_SAMPLES:
+            raise PlanInputError(f"--tool-tilt {tilt!r}: with --tool-axis that is {count} "
+                                 f"tool orientations; at most {MAX_SAMPLES} (larger steps)")
+        return (*spin, cone, step)
     if text is None:
         return None
     parts = text.split(":")
@@ -444,7 +466,7 @@ def request_from_args(args: argparse.Namespace) -> PlanRequest:
                                for text in args.allowed_contacts or ()),
         units=args.units,
         extra_columns=tuple(extra),
-        tool_axis=parse_tool_axis(args.tool_axis),
+        tool_axis=parse_tool_axis(args.tool_axis, args.tool_tilt),
         line_tolerance=args.line_tolerance / 1000.0,
         singularity_margin=math.radians(args.singularity_margin),
         shoulder_margin=args.shoulder_margin / 1000.0,
