@@ -110,9 +110,24 @@ SUCCESSORS: dict[str, str] = {
 }
 ENV_SPECS.update({new: {**copy.deepcopy(ENV_SPECS[old]), "collision_shapes": "drawn"}
                   for old, new in SUCCESSORS.items()})
+#: A process job on a real arm: a KR 6 R700 deburrs the rim of a part in its fixture
+#: (``envs/tasks/deburring.py``), the burr free about its axis (±90°, every 45°: the
+#: action is branch × spin, 32 × 5), one configuration along the whole pass (no joint
+#: step beyond 30°), the burr allowed to touch the part and nothing else.
+ENV_SPECS["IKBranch/KukaKR6Deburring-v0"] = {
+    "arm": "kuka_kr6_r700", "scene": "deburring_cell", "task": "deburring",
+    "observation": "compact", "collision_shapes": "drawn",
+    "tool": {"parts": [{"shape": "cylinder", "size": [0.025, 0.13]},
+                       {"shape": "cylinder", "size": [0.004, 0.04],
+                        "offset": {"pos": [0.0, 0.0, 0.13]}}],
+             "tcp": {"pos": [0.0, 0.0, 0.17]}},
+    "tool_axis": [1.5707963267948966, 0.7853981633974483],
+    "max_joint_step": 0.5235987755982988,
+    "allowed_contacts": [["tool_1", "part*"]],
+}
 ENV_IDS: tuple[str, ...] = tuple(ENV_SPECS)
 #: The ids of the current generation, in ``ENV_IDS`` order.
-CURRENT_IDS: tuple[str, ...] = tuple(SUCCESSORS.values())
+CURRENT_IDS: tuple[str, ...] = (*SUCCESSORS.values(), "IKBranch/KukaKR6Deburring-v0")
 
 for _env_id, _kwargs in ENV_SPECS.items():
     if _env_id not in gym.registry:

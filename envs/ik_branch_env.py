@@ -49,6 +49,12 @@ def _integer(value: object, name: str, minimum: int) -> int:
     return int(value)
 
 
+#: Tasks made of process segments: where process continuity, a free tool axis and
+#: singularity margins apply.
+PROCESS_TASKS = ("file", "deburring")
+_PROCESS = "task='file' or 'deburring' (process tasks)"
+
+
 def _check_choices(arm: str, scene: str, task: str, render_mode: str | None) -> None:
     """``ValueError`` for a name the env does not know."""
     for what, value, known in (("arm", arm, ARM_NAMES), ("scene", scene, SCENES),
@@ -62,8 +68,8 @@ def _check_choices(arm: str, scene: str, task: str, render_mode: str | None) -> 
 def _free_tool_axis(arm: Arm, tool: Tool | None, task: str, tool_axis: Any) -> Arm:
     """``arm`` with its tool free about the TCP's z axis (``tool_axis`` [range, step], or
     [range, step, cone, cone_step] with a tilt cone)."""
-    if task != "file":
-        raise ValueError("tool_axis is for task='file'")
+    if task not in PROCESS_TASKS:
+        raise ValueError(f"tool_axis is for {_PROCESS}")
     if not (isinstance(tool_axis, list | tuple) and len(tool_axis) in (2, 4)):
         raise ValueError("tool_axis must be [range, step] or [range, step, cone, cone_step] "
                          f"in rad, got {tool_axis!r}")
@@ -77,17 +83,17 @@ def _check_job_options(arm: Arm, task: str, max_joint_step: Any, singularity_mar
     """Process continuity and singularity margins: waypoint-file tasks only, values in
     range, margins only for arms with singularity rules."""
     if max_joint_step is not None:
-        if task != "file":
-            raise ValueError("max_joint_step (process continuity) is for task='file': "
-                             "its waypoints form the process segments")
+        if task not in PROCESS_TASKS:
+            raise ValueError(f"max_joint_step (process continuity) is for {_PROCESS}: "
+                             "their waypoints form the process segments")
         if max_joint_step != "auto":
             check_limit(max_joint_step)
     for name, margin in (("singularity_margin", singularity_margin),
                          ("shoulder_margin", shoulder_margin)):
         if margin is None:
             continue
-        if task != "file":
-            raise ValueError(f"{name} is for task='file'")
+        if task not in PROCESS_TASKS:
+            raise ValueError(f"{name} is for {_PROCESS}")
         if not has_singularity_rules(arm):
             raise ValueError(f"{name}: {arm.name} has no singularity rules (OPW and UR arms "
                              "have them)")
@@ -130,16 +136,17 @@ class IKBranchEnv(gym.Env):
     a vector env batches it with no extra call); an unmasked agent may still pick an
     invalid one, which ends the episode with ``invalid_penalty``.
 
-    **Process continuity** (``max_joint_step``, waypoint-file tasks only): the file's
-    waypoints form process segments (its ``segment`` column or blank lines, or
-    ``task_segments``), inside which no move may change the arm's configuration (its
-    closed-form branch: shoulder, elbow, wrist) or step a revolute joint by more than
+    **Process continuity** (``max_joint_step``, process tasks only: ``file`` and
+    ``deburring``): a waypoint file's waypoints form process segments (its ``segment``
+    column or blank lines, or ``task_segments``; a deburring pass is one), inside which
+    no move may change the arm's configuration (its closed-form branch: shoulder, elbow,
+    wrist) or step a revolute joint by more than
     ``max_joint_step`` rad (``"auto"``: derived from the task, ``envs/process.py``). Such a
     move is left out of the mask, and picking it anyway is an invalid branch; branches
     from which their segment cannot be followed are not valid at all, so the mask never
     empties for that reason; a segment that cannot be followed is a ``ValueError`` at
     reset naming where it breaks. Moves between segments may reconfigure.
-    ``singularity_margin`` and ``shoulder_margin`` (OPW and UR arms, waypoint-file tasks)
+    ``singularity_margin`` and ``shoulder_margin`` (OPW and UR arms, process tasks)
     leave out of the ladder every branch that near a singular configuration
     (``envs.kinematics.singularities``).
     ``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")`` advances N
@@ -220,7 +227,7 @@ class IKBranchEnv(gym.Env):
     argument              default                 meaning
     ===================== ======================= ===========================================
     arm                   "anthropomorphic"       a name in ``envs.kinematics.ARM_NAMES``
-    scene                 "random_clutter"        "empty", "milling_cell", "random_clutter", "file"
+    scene                 "random_clutter"        a name in ``envs.models.scenes.SCENES``
     task                  "random"                a name in ``envs.tasks.TASKS``
     n_waypoints           None                    waypoints per episode (None: the task's)
     lookahead             2                       later waypoints shown (H ≥ 0)
@@ -260,6 +267,11 @@ class IKBranchEnv(gym.Env):
     ===================== ======================= ===========================================
 
     ## Version history
+    - KukaKR6Deburring **-v0** (2026-12-04): a process job on a real arm. A KR 6 R700
+      deburrs the rim of a part clamped in a fixture (scene ``deburring_cell``, task
+      ``deburring``): one pass of 12 rim points an episode, its chamfer angle drawn, the
+      burr free about its axis (the action is branch × spin, 160), one configuration along
+      the pass (``max_joint_step`` 30°), the burr allowed to touch the part.
     - Same ids, same behaviour (2026-12-04): ``joint_speeds="rated"`` times moves at the
       real arm's data-sheet joint speeds (KR 6 R700, IRB 2400/2600/4600, UR5e, UR10e);
       ``tool_axis`` takes a tilt cone, [range, step, cone, cone_step]: the tool's axis may

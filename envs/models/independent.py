@@ -134,10 +134,14 @@ class Measure:
         bodies = {tuple(sorted((int(model.geom_bodyid[a]), int(model.geom_bodyid[b]))))
                   for a, b in checker._pairs}
         self.collision = self._geom_pairs(checker._pairs)
+        # Allowed contacts (the env's ``allowed_contacts``, by collision geom name) are the
+        # job, not a collision: their drawn twins are not measured either.
+        allowed = {frozenset(pair) for pair in base.allowed_contacts}
         drawn: list[tuple[int, int]] = []
         for b1, b2 in sorted(bodies):
             for g1 in self._drawn(b1):
-                drawn += [(g1, g2) for g2 in self._drawn(b2)]
+                drawn += [(g1, g2) for g2 in self._drawn(b2)
+                          if frozenset((self._twin(g1), self._twin(g2))) not in allowed]
         self.drawn = self._geom_pairs(np.array(drawn, dtype=np.int64).reshape(-1, 2))
         # Body pairs the model excludes explicitly that are not a joint's own two sides
         # (e.g. the earlier models' wrist housings): their drawn geoms, measured apart (the
@@ -159,6 +163,11 @@ class Measure:
         self.shapes = {g: _shape(self.model, g)
                        for pairs in (self.collision, self.drawn, self.excluded)
                        for g in pairs.ravel().tolist()}
+
+    def _twin(self, geom: int) -> str:
+        """The collision geom's name a drawn geom stands for (``<name>_vis`` → ``<name>``)."""
+        name = self.model.geom(geom).name
+        return name[: -len("_vis")] if name.endswith("_vis") else name
 
     def _drawn(self, body: int) -> list[int]:
         model = self.model

@@ -9,6 +9,11 @@
     :func:`milling_cell_poses`) so that the recommended transfer 1.1 → 2.1 is collision-free
     along its linear joint-space path, while reach-under and reach-over choices hit the
     rack cabinet, the machine or the floor. The held tool is on by default.
+``deburring_cell``
+    A part clamped in a fixture on a table in front of the arm, for the ``deburring``
+    task (``envs/tasks/deburring.py`` holds its geometry): the part is a rounded-corner
+    block (two boxes and four corner cylinders, geoms ``part*``), on a fixture plate with
+    two clamps and two locating pins.
 ``random_clutter``
     Seeded boxes and cylinders standing on the floor near points of the arm's workspace
     (any arm); obstacles that would touch the arm at ``arm.home`` (within the collision
@@ -154,6 +159,53 @@ def milling_cell(spec: mujoco.MjSpec, arm: Arm, tree: ArmTree, *, base_pos=None,
     # forearm of the elbow-up solutions; an elbow-down forearm comes in lower and hits it.
     _box(machine, "mill_chip_guard", (x2 - 0.55, y2 - 0.32, z2 - 0.25),
          (x2 + 0.50, y2 - 0.30, z2 - 0.03), STEEL)
+    return compile_spec(spec, collision_shapes=tree.collision_shapes)
+
+
+TABLE_TOP = 0.14
+FIXTURE_TOP = 0.16
+FIXTURE_RGBA = (0.45, 0.45, 0.50, 1.0)
+PART_RGBA = (0.75, 0.72, 0.62, 1.0)
+
+
+def deburring_cell(spec: mujoco.MjSpec, arm: Arm, tree: ArmTree) -> mujoco.MjModel:
+    """The part of the deburring task on its fixture (module docstring), in the arm's base
+    frame."""
+    from ikbranch_gym.envs.tasks.deburring import (
+        CORNER_RADIUS,
+        PART_CENTRE,
+        PART_HALF,
+        PART_HEIGHT,
+        PART_TOP,
+    )
+
+    if arm.target != "pose" or arm.dof != 6 or arm.relative or not tree.ee_body:
+        raise ValueError(f"the deburring cell needs a six-DOF single arm, not {arm.name!r}")
+    if abs(PART_TOP - PART_HEIGHT - FIXTURE_TOP) > 1e-12:
+        raise RuntimeError("the part stands on the fixture plate")
+    (cx, cy), (hx, hy), r = PART_CENTRE, PART_HALF, CORNER_RADIUS
+    table = add_static_body(spec, "table")
+    _box(table, "table", (0.25, -0.30, 0.0), (0.70, 0.30, TABLE_TOP), STEEL)
+    fixture = add_static_body(spec, "fixture")
+    _box(fixture, "fixture_plate", (cx - hx - 0.03, cy - hy - 0.05, TABLE_TOP),
+         (cx + hx + 0.03, cy + hy + 0.05, FIXTURE_TOP), FIXTURE_RGBA)
+    for side, name in ((1.0, "clamp_left"), (-1.0, "clamp_right")):  # on the ±y faces
+        y0, y1 = sorted((cy + side * hy, cy + side * (hy + 0.03)))
+        _box(fixture, name, (cx - 0.02, y0, FIXTURE_TOP), (cx + 0.02, y1, PART_TOP - 0.015),
+             FIXTURE_RGBA)
+    for k, dy in enumerate((-0.03, 0.03)):  # against the −x face
+        add_part(fixture, f"pin{k}", "cylinder", [0.006], STEEL,
+                 fromto=[cx - hx - 0.006, cy + dy, FIXTURE_TOP, cx - hx - 0.006, cy + dy,
+                         FIXTURE_TOP + 0.03])
+    part = add_static_body(spec, "part")
+    _box(part, "part", (cx - hx, cy - hy + r, FIXTURE_TOP), (cx + hx, cy + hy - r, PART_TOP),
+         PART_RGBA)
+    _box(part, "part_1", (cx - hx + r, cy - hy, FIXTURE_TOP), (cx + hx - r, cy + hy, PART_TOP),
+         PART_RGBA)
+    for k, (sx, sy) in enumerate(((1, 1), (-1, 1), (-1, -1), (1, -1))):
+        x, y = cx + sx * (hx - r), cy + sy * (hy - r)
+        add_part(part, f"part_{k + 2}", "cylinder", [r], PART_RGBA,
+                 fromto=[x, y, FIXTURE_TOP, x, y, PART_TOP])
     return compile_spec(spec, collision_shapes=tree.collision_shapes)
 
 
@@ -421,6 +473,7 @@ def _write_slots(geoms, size, pos, rbound, aabb, geom_size, geom_pos, geom_quat,
             geom_aabb[g, c] = aabb[i, c]
 
 
-SCENES = {"empty": empty, "milling_cell": milling_cell, "random_clutter": random_clutter}
+SCENES = {"empty": empty, "milling_cell": milling_cell, "random_clutter": random_clutter,
+          "deburring_cell": deburring_cell}
 #: ``scene="file"``: the obstacles of an MJCF file (``scene_file=PATH``; envs/models/scene_file.py).
 SCENES["file"] = file_scene

@@ -16,6 +16,7 @@ name               arms                         waypoints
 ``tool_changes``   anthropomorphic, milling cell above slot, slot, above slot, spindle …
 ``paper_transfer`` anthropomorphic              the paper's positions 1 → 2
 ``screwing``       six-DOF pose arms            the tool turning about its axis, 480–960°
+``deburring``      six-DOF pose arms, deburring_cell  a burr along the part's rim, one segment
 ``file``           six-DOF pose arms            the poses of a waypoint file (``task_file``)
 ================== ============================ ==========================================
 
@@ -31,6 +32,7 @@ Waypoint files (CSV/JSON, ``read_waypoints``/``write_waypoints``) are read by
 from __future__ import annotations
 
 from .base import Task, TaskGenerator
+from .deburring import deburring
 from .paths import circle, helix, line
 from .random_reachable import random_reachable
 from .relative_motion import relative_motion, relative_motion_free
@@ -48,6 +50,7 @@ TASKS: dict[str, TaskGenerator | None] = {
     "tool_changes": tool_changes,
     "paper_transfer": paper_transfer,
     "screwing": screwing,
+    "deburring": deburring,
     # The env builds a FileTask from ``task_file=PATH`` (envs/tasks/file_task.py).
     "file": None,
 }

@@ -113,7 +113,19 @@ CURRENT = {
     "IKBranch/UR5e-v1": "IKBranch/UR5e-v0",
     "IKBranch/IRB4600ToolTransfer-v1": "IKBranch/IRB4600ToolTransfer-v0",
     "IKBranch/IRB2600Screwing-v1": "IKBranch/IRB2600Screwing-v0",
+    "IKBranch/KukaKR6Deburring-v0": None,  # a new job, no generation before
 }
+
+
+def test_the_deburring_job_is_the_kr6_on_its_cell_with_a_free_burr():
+    made = {**DEFAULTS, **gym.spec("IKBranch/KukaKR6Deburring-v0").kwargs}
+    assert (made["arm"], made["scene"], made["task"]) == (
+        "kuka_kr6_r700", "deburring_cell", "deburring")
+    assert made["collision_shapes"] == "drawn" and made["allowed_contacts"] == [
+        ["tool_1", "part*"]]
+    env = gym.make("IKBranch/KukaKR6Deburring-v0")
+    assert env.action_space.n == 32 * 5  # the KR 6 R700's branches × the burr's spins
+    assert env.unwrapped.pricer.max_joint_step == pytest.approx(np.radians(30.0))
 
 
 def test_every_required_id_is_registered_and_makes_what_it_says():
@@ -128,6 +140,8 @@ def test_every_required_id_is_registered_and_makes_what_it_says():
         assert (made["scene_seed"] is None) == per_episode, env_id
         assert made["collision_shapes"] == "inscribed", env_id
     for env_id, before in CURRENT.items():
+        if before is None:
+            continue
         now, then = dict(gym.spec(env_id).kwargs), dict(gym.spec(before).kwargs)
         assert (now.pop("collision_shapes"), then.pop("collision_shapes")) == (
             "drawn", "inscribed"), env_id
@@ -170,6 +184,8 @@ BAD_KWARGS = [
     ({"arm_params": {"bogus": 1.0}}, "bogus"),
     ({"task": "relative_motion"}, "two-arm"),
     ({"task": "tool_changes"}, "milling_cell"),
+    ({"task": "deburring"}, "needs scene='deburring_cell'"),
+    ({"scene": "deburring_cell", "arm": "dual_rrp_rpp", "task": "random"}, "six-DOF"),
 ]
 
 

@@ -295,7 +295,7 @@ def test_the_vector_env_is_the_single_env_bit_for_bit(spin_file):
 
 
 def test_continuity_needs_a_file_task_and_a_limit_below_half_a_turn(spin_file):
-    with pytest.raises(ValueError, match=r"max_joint_step .* is for task='file'"):
+    with pytest.raises(ValueError, match=r"max_joint_step .* is for task='file' or 'deburring'"):
         IKBranchEnv(arm=ARM, scene="empty", max_joint_step="auto")
     with pytest.raises(ValueError, match="task_segments, task_units, task_columns and "
                                          "task_skip_unreachable are for task='file'"):
@@ -332,7 +332,7 @@ def test_branches_near_a_singularity_are_left_out(spin_file, tmp_path):
     with pytest.raises(ValueError, match=r"every branch lies within the singularity margins "
                                          r"\(wrist and elbow 60°\)"):
         _env(spin_file, singularity_margin=math.radians(60.0)).reset(seed=0)
-    with pytest.raises(ValueError, match="singularity_margin is for task='file'"):
+    with pytest.raises(ValueError, match="singularity_margin is for task='file' or 'deburring'"):
         IKBranchEnv(arm=ARM, scene="empty", singularity_margin=0.1)
     with pytest.raises(ValueError, match="anthropomorphic has no singularity rules"):
         IKBranchEnv(arm="anthropomorphic", scene="empty", task="file",

@@ -92,7 +92,7 @@ def test_a_free_axis_is_never_worse_than_the_fixed_one(tmp_path):
 
 
 def test_the_tool_axis_is_for_a_waypoint_file():
-    with pytest.raises(ValueError, match="tool_axis is for task='file'"):
+    with pytest.raises(ValueError, match="tool_axis is for task='file' or 'deburring'"):
         IKBranchEnv(arm="kuka_kr6_r700", scene="empty", tool_axis=[1.0, 0.5])
     with pytest.raises(ValueError, match=r"tool_axis must be \[range, step\]"):
         IKBranchEnv(arm="kuka_kr6_r700", scene="empty", task="file",

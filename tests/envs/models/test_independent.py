@@ -130,3 +130,17 @@ def test_a_certificate_holds_between_the_samples():
     through_the_floor = probe.certify(start, under, pairs)
     assert over_the_top.certified and over_the_top.least > 0.05
     assert not through_the_floor.certified and through_the_floor.least < -0.1
+
+
+def test_allowed_contacts_alone_leave_the_independent_check():
+    # The deburring id lets the burr (tool_1) touch the part: those drawn pairs are the
+    # job; the spindle (tool) against the part, and the burr against the clamps, are still
+    # measured.
+    env = gym.make("IKBranch/KukaKR6Deburring-v0")
+    env.reset(seed=0)
+    probe = Measure(env)
+    model = env.unwrapped.model
+    names = {tuple(sorted((model.geom(a).name, model.geom(b).name))) for a, b in probe.drawn}
+    assert not any(a.startswith("part") and b == "tool_1_vis" for a, b in names)
+    assert ("part_vis", "tool_vis") in names
+    assert ("clamp_left_vis", "tool_1_vis") in names
