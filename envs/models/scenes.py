@@ -162,8 +162,8 @@ def milling_cell(spec: mujoco.MjSpec, arm: Arm, tree: ArmTree, *, base_pos=None,
     return compile_spec(spec, collision_shapes=tree.collision_shapes)
 
 
-TABLE_TOP = 0.14
-FIXTURE_TOP = 0.16
+TABLE_TOP = 0.02
+FIXTURE_TOP = 0.04
 FIXTURE_RGBA = (0.45, 0.45, 0.50, 1.0)
 PART_RGBA = (0.75, 0.72, 0.62, 1.0)
 

@@ -31,16 +31,16 @@ from .base import FreePredicate, PathPredicate, Task, require_pose_arm, task_gen
 
 #: The part's top rim (m, in the arm's base frame): centre, half-lengths along x and y,
 #: height of the top face, corner radius; the part is ``PART_HEIGHT`` tall.
-PART_CENTRE = (0.45, 0.0)
-PART_HALF = (0.08, 0.06)
-PART_TOP = 0.22
+PART_CENTRE = (0.42, 0.0)
+PART_HALF = (0.06, 0.08)
+PART_TOP = 0.10
 PART_HEIGHT = 0.06
 CORNER_RADIUS = 0.012
 #: Rim sampling: along the edges (m) and around the corners (rad).
 SPACING = 0.02
 CORNER_STEP = math.radians(15.0)
 #: The chamfer angle β: the burr's axis leans out of the part by β from the vertical.
-CHAMFER_RANGE = (math.radians(30.0), math.radians(60.0))
+CHAMFER_RANGE = (math.radians(30.0), math.radians(50.0))
 #: The step limit inside the pass (rad): the ids' ``max_joint_step``, and the search's.
 MAX_STEP = math.radians(30.0)
 #: Where every pass starts: the KR 6 R700 above the fixture (A5 bent, tool down).
