@@ -780,7 +780,8 @@ def test_a_free_tool_axis_follows_the_spin_in_one_segment(tmp_path, capsys):
     args = ["--arm", "kuka_kr6_r700", "--waypoints", str(path), "--out", str(out)]
     assert main(args) == EXIT_INPUT  # fixed: the segment breaks
     capsys.readouterr()
-    assert main([*args, "--tool-axis", "180:25", "--json", str(record)]) == EXIT_OK
+    assert main([*args, "--tool-axis", "180:25", "--json", str(record), "--map",
+                 str(tmp_path / "map.png")]) == EXIT_OK
     data = json.loads(record.read_text())
     summary = data["summary"]["dp_oracle"]
     assert summary["success"] and summary["reconfigurations"] == 0
@@ -793,6 +794,23 @@ def test_a_free_tool_axis_follows_the_spin_in_one_segment(tmp_path, capsys):
     turns = sorted(round((t + 180) % 360 - 180, 9) for t in np.diff(angles))
     assert turns == [-25.0] * 28 + [-10.0]
     assert data["inputs"]["env_kwargs"]["tool_axis"] == [math.pi, math.radians(25)]
+    # The map's rows are the tool's 15 angles; the plan's line runs through free cells, and
+    # a cell is the best of the configuration's branches (turns of j4, j6) at that angle.
+    from ikbranch_gym.train.plan.chart import FREE, NEAR_SINGULAR, axis_states, cell_states
+
+    result = plan_module.plan(plan_module.request_from_args(plan_module.parser().parse_args(
+        [*args, "--tool-axis", "180:25"])))
+    rungs = cell_states(result)
+    states = axis_states(result, result.chosen_run, rungs)
+    assert states.shape == (30, 15)
+    closed = result.arm.branch_closed_form
+    for step in result.chosen_run.reached:
+        sample = step.branch % 15
+        assert states[step.waypoint, sample] in (FREE, NEAR_SINGULAR)
+        same = [r for r in range(len(closed)) if closed[r] == closed[step.branch]
+                and r % 15 == sample]
+        assert states[step.waypoint, sample] == max(rungs[step.waypoint, r] for r in same)
+    assert iio.imread(tmp_path / "map.png").shape[0] > 300
 
 
 def test_a_kuka_frame_file_in_mm_with_its_own_columns(tmp_path, capsys):

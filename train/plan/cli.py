@@ -127,7 +127,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--gif-hold", type=float, default=0.5, metavar="S",
                    help="GIF: how long each waypoint is held (s, 0.5)")
     p.add_argument("--gif-speed", type=float, default=1.0,
-                   help="GIF playback speed: 1 is real time at the env's joint speeds (1)")
+                   help="GIF playback speed: 1 is real time at the --joint-speeds (1)")
     return p
 
 
