@@ -162,8 +162,13 @@ def test_rapid_module_of_the_welding_seam(cell):
     np.testing.assert_allclose(np.array([targets[name] for name in order]),
                                _joint_rows(cell / "weld.csv"), rtol=0,
                                atol=math.radians(1e-9))
-    # The torch's j6 turns beyond −180° on this seam: written as the branch has it.
+    # The torch's j6 turns beyond −180° on this seam: written as the branch has it, and the
+    # CSV names the turn (a revolution back) beside the configuration.
     assert min(targets[name][5] for name in order) < -math.pi
+    for row, name in zip(rows_of(cell / "weld.csv"), order, strict=True):
+        j6 = targets[name][5]
+        assert row["turns"].split()[-1] == ("j6:-1" if j6 < -math.pi else "j6:0")
+        assert row["turns"].startswith("j1:0 j2:0 j3:0 ")
 
 
 def test_urscript_program_of_a_ur5e_job(tmp_path, monkeypatch):

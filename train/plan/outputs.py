@@ -66,7 +66,7 @@ def controller_values(arm: Any, q: np.ndarray) -> list[int]:
 def csv_columns(arm: Arm, extra: Sequence[str] = ()) -> list[str]:
     names, kinds = arm.joint_names, arm.joint_types
     return (["waypoint", "row", "name", "segment", "branch", "label", "configuration",
-             "tool_angle_deg", "tool_tilt_deg", "tool_tilt_azimuth_deg",
+             "turns", "tool_angle_deg", "tool_tilt_deg", "tool_tilt_azimuth_deg",
              *controller_columns(arm), *names,
              *(f"{n}_{_unit_suffix(k)}" for n, k in zip(names, kinds, strict=True)),
              "travel_rad", "travel_deg", "time_s", "collision", "max_step_deg", "air_move",
@@ -74,6 +74,15 @@ def csv_columns(arm: Arm, extra: Sequence[str] = ()) -> list[str]:
              "near_singularity", "line_deviation_mm", "line_rotation_deg", "off_line",
              "clearance_mm", "clearance_pair",
              "cumulative_travel_rad", "cumulative_travel_deg", *extra])
+
+
+def turns(arm: Any, q: np.ndarray) -> str:
+    """Each revolute joint's turn ``name:t``, t = ⌊(q + π) / 2π⌋ (0 in [−π, π), 1 a
+    revolution on, −1 one back), space-separated in joint order: with ``configuration``,
+    the controller-independent name of where the arm stands."""
+    return " ".join(f"{name}:{math.floor((float(v) + math.pi) / (2.0 * math.pi))}"
+                    for name, v, kind in zip(arm.joint_names, q, arm.joint_types, strict=True)
+                    if kind == "revolute")
 
 
 def tool_angle(arm: Any, branch: int) -> float:
@@ -121,7 +130,8 @@ def plan_csv(plan: Plan, run: PlanRun | None = None) -> str:
         writer.writerow([
             step.waypoint, plan.rows[step.waypoint], plan.names[step.waypoint], move.segment,
             step.branch, step.label,
-            move.configuration, repr(math.degrees(tool_angle(arm, step.branch))),
+            move.configuration, turns(arm, step.q),
+            repr(math.degrees(tool_angle(arm, step.branch))),
             *(repr(math.degrees(v)) for v in tool_tilt(arm, step.branch)),
             *controller_values(arm, step.q),
             *(repr(float(v)) for v in step.q),
