@@ -100,6 +100,8 @@ def judged_success(env: gym.Env, policy: SB3Policy, seed: int, checker_backend: 
         obs, _, terminated, truncated, _ = env.step(int(action))
         done = terminated or truncated
         end, target = base.q.copy(), poses[reached]
+        if hasattr(arm, "branch_pose"):  # a free tool axis: the pose turned by the rung's
+            target = arm.branch_pose(target, int(action))  # tool orientation
         pose = arm.fk(end)
         if arm.target == "position":
             pose, target = pose[:3, 3], target[:3, 3]
