@@ -98,7 +98,27 @@ def build_arm_model(
         add_tool(spec, tree, tool)
     model = scene_builder(spec, arm, tree, **scene_kwargs)
     check_joint_order(model, arm)
+    if isinstance(tool, Tool):
+        _check_tool_meshes(model, tool)
     return model
+
+
+def _check_tool_meshes(model: mujoco.MjModel, tool: Tool) -> None:
+    """``ValueError`` for a tool mesh larger than any tool: a mesh written in millimetres
+    (MuJoCo reads mesh files in metres)."""
+    from ikbranch_gym.envs.tools import MAX_TOOL_LENGTH
+
+    from .scene_file import mesh_size
+
+    for i, part in enumerate(tool.parts):
+        if part.mesh is None:
+            continue
+        geom = model.geom("tool" if i == 0 else f"tool_{i}")
+        size = mesh_size(model, int(model.geom_dataid[geom.id]))
+        if size > MAX_TOOL_LENGTH:
+            raise ValueError(f"tool mesh {part.mesh} spans {size:.3g} m, more than "
+                             f"{MAX_TOOL_LENGTH:g} m: is it in millimetres? Tool meshes "
+                             "are read in metres")
 
 
 def add_tool(spec: mujoco.MjSpec, tree: ArmTree, tool: Tool) -> None:

@@ -271,6 +271,7 @@ def load_scene_file(
     except ValueError as exc:
         raise SceneFileError(path, f"MuJoCo cannot compile it: {_one_line(exc)}") from None
     _check_static(path, model)
+    _check_mesh_sizes(path, model)
     data = mujoco.MjData(model)
     mujoco.mj_kinematics(model, data)
     pose = _base_pose(path, spec, model, data, base_pos, base_quat, base_rpy)
@@ -319,6 +320,32 @@ def load_scene_file(
 
 def _one_line(exc: Exception) -> str:
     return " ".join(str(exc).split())
+
+
+#: A mesh obstacle larger than this (m, the diagonal of its bounding box) is taken for
+#: one written in millimetres: no robot cell is 100 m across.
+MAX_MESH_SIZE = 100.0
+
+
+def mesh_size(model: mujoco.MjModel, mesh: int) -> float:
+    """The diagonal (m) of mesh ``mesh``'s bounding box as compiled (scaled, and turned to
+    its principal axes as MuJoCo compiles a mesh)."""
+    start, count = int(model.mesh_vertadr[mesh]), int(model.mesh_vertnum[mesh])
+    vertices = model.mesh_vert[start:start + count]
+    return float(np.linalg.norm(vertices.max(axis=0) - vertices.min(axis=0)))
+
+
+def _check_mesh_sizes(path: Path, model: mujoco.MjModel) -> None:
+    for g in range(model.ngeom):
+        if model.geom_type[g] != _G.mjGEOM_MESH:
+            continue
+        size = mesh_size(model, int(model.geom_dataid[g]))
+        if size > MAX_MESH_SIZE:
+            mesh = model.mesh(int(model.geom_dataid[g])).name or "its mesh"
+            raise SceneFileError(
+                path, f"mesh {mesh!r} spans {size:.3g} m: is it in millimetres? MuJoCo reads "
+                "meshes in metres (or give the mesh scale=\"0.001 0.001 0.001\")",
+                f"geom {model.geom(g).name or f'geom{g}'!r}")
 
 
 def _check_static(path: Path, model: mujoco.MjModel) -> None:

@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 
 from ikbranch_gym.envs.ik_branch_env import IKBranchEnv
+from ikbranch_gym.envs.kinematics import make_arm
+from ikbranch_gym.envs.models import build_arm_model
 from ikbranch_gym.envs.tools import Tool
 
 TORCH = {"shape": "cylinder", "size": [0.02, 0.3],
@@ -164,3 +166,18 @@ def test_the_second_part_of_a_tool_collides_on_its_own():
     assert len(q)
     assert not one_part.checker.collides(q).any()
     assert two_parts.checker.collides(q).all()
+
+
+def test_a_tool_mesh_in_millimetres_gets_a_hint(tmp_path):
+    # A torch drawn 150 mm long, written as the CAD exported it: 150 units, read as metres.
+    mesh = tmp_path / "torch.obj"
+    mesh.write_text("v 0 0 0\nv 20 0 0\nv 0 20 0\nv 0 0 150\n"
+                    "f 1 3 2\nf 1 2 4\nf 2 3 4\nf 1 4 3\n")
+    tool = Tool.from_spec({"shape": "mesh", "mesh": str(mesh)})
+    with pytest.raises(ValueError, match=r"torch\.obj spans 15\d m, more than 5 m: is it in "
+                                         "millimetres"):
+        build_arm_model(make_arm("kuka_kr6_r700"), "empty", tool=tool)
+    metres = tmp_path / "torch_m.obj"
+    metres.write_text(mesh.read_text().replace(" 20 ", " 0.02 ").replace(" 150", " 0.15"))
+    build_arm_model(make_arm("kuka_kr6_r700"), "empty",
+                    tool=Tool.from_spec({"shape": "mesh", "mesh": str(metres)}))

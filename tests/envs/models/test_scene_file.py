@@ -661,6 +661,9 @@ BAD_SCENES = [
      {}, "MuJoCo cannot compile it", ""),
     ("bad attribute", '<geom name="g" size="0.1" colour="red"/>', "", {},
      "MuJoCo cannot compile it", ""),
+    ("mesh in millimetres", '<geom name="jig" type="mesh" mesh="jig"/>',
+     '<mesh name="jig" vertex="0 0 0  400 0 0  0 300 0  0 0 200"/>', {},
+     "m: is it in millimetres? MuJoCo reads meshes in metres", "geom 'jig'"),
 ]
 
 
