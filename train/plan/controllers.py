@@ -97,7 +97,7 @@ def motions(plan: Plan, run: PlanRun, targets: str = "joints",
     """The program's moves: each row of ``run`` a joint move to a ``targets`` target, or,
     with ``linear``, inside a segment a linear move wherever the plan's check lets it."""
     kinematic = getattr(plan.arm, "base_arm", plan.arm)
-    tcp = np.eye(4) if plan.tool is None else plan.tool.tcp
+    tcp = _tcp(plan)
     lines = plan.linear_moves(run) if linear else [None] * len(run.reached)
     out = []
     for step, line in zip(run.reached, lines, strict=True):

@@ -288,6 +288,19 @@ def parse_allowed_contact(text: str) -> tuple[str, str]:
     return parts[0].strip(), parts[1].strip()
 
 
+def _degree_pair(text: str, option: str, form: str, example: str) -> tuple[float, float]:
+    """``A:B`` in degrees as two angles in rad; ``PlanInputError`` naming ``option``."""
+    parts = text.split(":")
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        first, second = (math.radians(float(part)) for part in parts)
+    except ValueError:
+        raise PlanInputError(f"{option} {text!r}: give {form} in degrees, e.g. "
+                             f"{example}") from None
+    return first, second
+
+
 def parse_tool_axis(text: str | None, tilt: str | None = None) -> tuple[float, ...] | None:
     """``--tool-axis RANGE:STEP`` and ``--tool-tilt CONE:STEP`` (degrees): (range, step)
     or (range, step, cone, cone_step) in rad, checked."""
@@ -295,14 +308,8 @@ def parse_tool_axis(text: str | None, tilt: str | None = None) -> tuple[float, .
         from ikbranch_gym.envs.tool_axis import MAX_SAMPLES, axis_angles, tilt_directions
 
         spin = parse_tool_axis(text) or (0.0, math.pi)
-        parts = tilt.split(":")
-        try:
-            if len(parts) != 2:
-                raise ValueError
-            cone, step = (math.radians(float(part)) for part in parts)
-        except ValueError:
-            raise PlanInputError(f"--tool-tilt {tilt!r}: give CONE:STEP in degrees, e.g. "
-                                 "10:5 (tilts of 5° and 10° around the axis)") from None
+        cone, step = _degree_pair(tilt, "--tool-tilt", "CONE:STEP", "10:5 (tilts of 5° and "
+                                  "10° around the axis)")
         try:
             count = len(axis_angles(*spin)) * len(tilt_directions(cone, step))
         except ValueError as exc:
@@ -313,14 +320,8 @@ def parse_tool_axis(text: str | None, tilt: str | None = None) -> tuple[float, .
         return (*spin, cone, step)
     if text is None:
         return None
-    parts = text.split(":")
-    try:
-        if len(parts) != 2:
-            raise ValueError
-        half_range, step = (math.radians(float(part)) for part in parts)
-    except ValueError:
-        raise PlanInputError(f"--tool-axis {text!r}: give RANGE:STEP in degrees, e.g. 180:15 "
-                             "(every 15° from −180° to 180°)") from None
+    half_range, step = _degree_pair(text, "--tool-axis", "RANGE:STEP",
+                                    "180:15 (every 15° from −180° to 180°)")
     from ikbranch_gym.envs.tool_axis import axis_angles
 
     try:
