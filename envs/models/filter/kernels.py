@@ -19,9 +19,9 @@ from numba.experimental import structref
 from ikbranch_gym.envs.jit import njit
 
 from .. import native
-from .layout import BOX, CAPSULE, CYLINDER, PLANE, SPHERE
+from .layout import BOX, CAPSULE, CYLINDER, SPHERE
 from .shapes import _bound_pair, _box_box, _inner_distance, _skewers
-from .tree import _axis_growth, _forward, _local_speed, _path_rates, _path_sample, _place_slots
+from .tree import _forward, _local_speed, _path_rates, _path_sample, _place_slots, _slot_growth
 
 #: What :func:`_sample_step` returns besides a free step (≥ 0).
 UNDECIDED, CONTACT = -1.0, -2.0
@@ -103,6 +103,7 @@ def _sample_step(tree, geometry, qpos, xpos, xmat, wpos, wrot, rates, coarse, ca
             if speeds[a] < 0.0:
                 speeds[a] = _local_speed(a, motion, xpos, xmat, jnt_pos, jnt_axis, jnt_type,
                                          wpos, slot_radius[a], dq)
+                growth[a] = _slot_growth(a, motion, jnt_type, dq)
             step = _local_step(step, gap, speeds[a], growth[a])
         if step < best:
             best = step
@@ -211,13 +212,16 @@ def _local_step(step, gap, v0, w):
 
 @njit(inline="always")
 def _coarser_gap(ka, ca, ra, sa, radius_a, kb, cb, rb, sb, static_b, enough):
-    """Cheap lower bounds on a pair's distance before the containers' own: a's bounding
-    sphere against a static b's container, and the boxes around two solids by their
+    """Cheap lower bounds on a pair's distance before the containers' own, for a box ``b``:
+    a's bounding sphere against a static box, and the boxes around two solids by their
     separating axes (faces first, stopping at ``enough``: a few dozen operations where a
     capsule's exact distance to a box takes several times that); −inf where neither
-    applies."""
+    applies. Against other kinds the pair's own bound is about as cheap as these
+    (``docs/models.md``), so they are not tried."""
     best = -math.inf
-    if static_b and kb != PLANE:
+    if kb != BOX:
+        return best
+    if static_b:
         best = _bound_pair(SPHERE, ca, rb, (radius_a, 0.0, 0.0), kb, cb, rb, sb, math.inf)
         if best >= enough:
             return best
@@ -389,12 +393,13 @@ def check_paths(tree, geometry, motion, exact, scenes, start_rows, end_rows, ste
     kinematic = tree[:12]
     qpos0 = tree[11]
     pair_lever = geometry[10]
+    # Per joint, every pair's lever arm: a path's rates in one contiguous pass per joint.
+    lever_by_joint = np.ascontiguousarray(pair_lever.T)
     nq = pair_lever.shape[1]
     dof = end_rows.shape[1]
     delta, qpos, start = np.zeros(nq), np.empty(nq), np.empty(nq)
-    slot_lever, slot_moved, _, jnt_down = motion
-    jnt_type = tree[6]
-    dq, growth, speeds = np.zeros(nq), np.zeros(len(slot_lever)), np.empty(len(slot_lever))
+    slots = len(motion[0])
+    dq, growth, speeds = np.zeros(nq), np.zeros(slots), np.empty(slots)
     local = (dq, growth, speeds)
     size = _queue_size(steps)
     queue_lo, queue_hi = np.empty(size, np.int64), np.empty(size, np.int64)
@@ -408,8 +413,7 @@ def check_paths(tree, geometry, motion, exact, scenes, start_rows, end_rows, ste
             _enter(scene, wpos, wrot)
             entered = e
         _fill_qpos(start, qpos0, start_rows[0] if start_rows.shape[0] == 1 else start_rows[m])
-        _path_rates(start, end_rows, m, pair_lever, delta, rates, dq)
-        _axis_growth(slot_lever, slot_moved, jnt_down, jnt_type, dq, dof, growth)
+        _path_rates(start, end_rows, m, lever_by_joint, delta, rates, dq)
         # The raked search stays here: as an inlined helper taking these arrays (numba
         # reference-counts them per call) it measured ~7 % slower on short paths.
         found = n + 1

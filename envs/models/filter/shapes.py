@@ -310,50 +310,88 @@ def _cylinder_gap(x, y, z, r, h):
     return math.sqrt(ex * ex + ey * ey + dz * dz), ex, ey, dz
 
 
-@njit
-def _segment_cylinder(px, py, pz, qx, qy, qz, c, rot, r, h):
-    """Lower bound on the distance of the segment pq from a solid cylinder (centre ``c``,
-    rotation ``rot``, radius ``r``, half-height ``h``), within 1e-6 of it.
+@njit(inline="always")
+def _segment_cylinder_floor(ax, ay, az, dx, dy, dz, r, h):
+    """A cheap lower bound on the distance of the segment a + t·d, 0 ≤ t ≤ 1 (cylinder
+    frame) from the solid cylinder: the larger of its least radial excess (the 2-D
+    segment's distance from the axis, less r) and its least axial excess (|z| less h).
+    Exact beside the side and over the flat ends; over a rim it may fall short by up to
+    a factor √2."""
+    length = dx * dx + dy * dy
+    t = 0.0
+    if length > 0.0:
+        t = _clamp(-(ax * dx + ay * dy) / length, 0.0, 1.0)
+    x, y = ax + t * dx, ay + t * dy
+    radial = math.sqrt(x * x + y * y) - r
+    z0, z1 = az, az + dz
+    axial = -h if z0 * z1 <= 0.0 else min(abs(z0), abs(z1)) - h
+    return max(radial, axial)
 
-    The distance from a convex set is convex along the segment: golden-section search
-    keeps its minimiser bracketed, and the tangents at the bracket's ends (gradients: the
-    unit vectors from the nearest points) bound it from below.
+
+@njit(inline="always")
+def _cylinder_slope(x, y, z, dx, dy, dz, r, h):
+    """The distance of the point (x, y, z) (cylinder frame) from the solid cylinder and its
+    derivative along (dx, dy, dz) (0 inside)."""
+    f, ex, ey, ez = _cylinder_gap(x, y, z, r, h)
+    return f, ((ex * dx + ey * dy + ez * dz) / f if f > 0.0 else 0.0)
+
+
+@njit(inline="always")
+def _tangents_floor(lo, hi, t1, f1, g1, t2, f2, g2):
+    """The least over [lo, hi] of the larger of the tangent lines at t1 < t2 (values f,
+    slopes g) of a convex function."""
+    if g1 >= 0.0:
+        return f1 + g1 * (lo - t1)
+    if g2 <= 0.0:
+        return f2 + g2 * (hi - t2)
+    t = (f2 - f1 + g1 * t1 - g2 * t2) / (g1 - g2)
+    return f1 + g1 * (t - t1)
+
+
+@njit
+def _segment_cylinder(px, py, pz, qx, qy, qz, c, rot, r, h, floor, enough):
+    """Lower bound on the distance of the segment pq from a solid cylinder (centre ``c``,
+    rotation ``rot``, radius ``r``, half-height ``h``), within about 1e-7 of it unless it
+    stops early: once the bound reaches ``enough`` (no caller needs more) or once the
+    least distance seen is at most ``floor`` (no bound from here can beat the caller's).
+
+    First the cheap radial and axial excesses (:func:`_segment_cylinder_floor`). Then:
+    the distance from a convex set is convex along the segment and differentiable where
+    it is positive, so every tangent line lies below it; golden-section search keeps the
+    minimiser bracketed, and the tangents at the bracket's two inner points bound the
+    minimum from below over the bracket, until that bound is within 1e-7 of the least
+    value seen.
     """
     ax, ay, az = _to_box(px, py, pz, c, rot)
     bx, by, bz = _to_box(qx, qy, qz, c, rot)
     dx, dy, dz = bx - ax, by - ay, bz - az
+    quick = _segment_cylinder_floor(ax, ay, az, dx, dy, dz, r, h) - 1e-9
+    if quick >= enough:
+        return quick
     lo, hi = 0.0, 1.0
     ratio = 0.6180339887498949
     m1, m2 = hi - ratio * (hi - lo), lo + ratio * (hi - lo)
-    f1 = _cylinder_gap(ax + m1 * dx, ay + m1 * dy, az + m1 * dz, r, h)[0]
-    f2 = _cylinder_gap(ax + m2 * dx, ay + m2 * dy, az + m2 * dz, r, h)[0]
-    length = math.sqrt(dx * dx + dy * dy + dz * dz)
-    while (hi - lo) * length > 1e-6:
+    f1, g1 = _cylinder_slope(ax + m1 * dx, ay + m1 * dy, az + m1 * dz, dx, dy, dz, r, h)
+    f2, g2 = _cylinder_slope(ax + m2 * dx, ay + m2 * dy, az + m2 * dz, dx, dy, dz, r, h)
+    # 0.618^80 of the segment: far below any length the tolerance can see.
+    for _ in range(80):
+        bound = _tangents_floor(lo, hi, m1, f1, g1, m2, f2, g2)
+        seen = min(f1, f2)
+        if seen - bound <= 1e-7 or bound >= enough or seen <= floor:
+            break
         if f1 <= f2:
-            hi, m2, f2 = m2, m1, f1
+            hi, m2, f2, g2 = m2, m1, f1, g1
             m1 = hi - ratio * (hi - lo)
-            f1 = _cylinder_gap(ax + m1 * dx, ay + m1 * dy, az + m1 * dz, r, h)[0]
+            f1, g1 = _cylinder_slope(ax + m1 * dx, ay + m1 * dy, az + m1 * dz, dx, dy, dz,
+                                     r, h)
         else:
-            lo, m1, f1 = m1, m2, f2
+            lo, m1, f1, g1 = m1, m2, f2, g2
             m2 = lo + ratio * (hi - lo)
-            f2 = _cylinder_gap(ax + m2 * dx, ay + m2 * dy, az + m2 * dz, r, h)[0]
-    best = math.inf
-    for t in (lo, hi):
-        f, ex, ey, ez = _cylinder_gap(ax + t * dx, ay + t * dy, az + t * dz, r, h)
-        best = min(best, f)
-    f_lo, ex, ey, ez = _cylinder_gap(ax + lo * dx, ay + lo * dy, az + lo * dz, r, h)
-    g_lo = (ex * dx + ey * dy + ez * dz) / f_lo if f_lo > 0.0 else 0.0
-    f_hi, ex, ey, ez = _cylinder_gap(ax + hi * dx, ay + hi * dy, az + hi * dz, r, h)
-    g_hi = (ex * dx + ey * dy + ez * dz) / f_hi if f_hi > 0.0 else 0.0
-    # Over [lo, hi] (where the minimum lies) f is above both tangents.
-    if g_lo >= 0.0:
-        bound = f_lo
-    elif g_hi <= 0.0:
-        bound = f_hi
-    else:
-        t = (f_hi - f_lo + g_lo * lo - g_hi * hi) / (g_lo - g_hi)
-        bound = f_lo + g_lo * (t - lo)
-    return min(bound, best) - 1e-9
+            f2, g2 = _cylinder_slope(ax + m2 * dx, ay + m2 * dy, az + m2 * dz, dx, dy, dz,
+                                     r, h)
+    # Rounding: a tangent evaluated in floating point may sit a few ulps above the
+    # function; 1e-9 m covers it many times over.
+    return max(_tangents_floor(lo, hi, m1, f1, g1, m2, f2, g2) - 1e-9, quick)
 
 
 @njit
@@ -367,23 +405,46 @@ def _bound_pair(ka, ca, ra, sa, kb, cb, rb, sb, enough):
     bound)."""
     if ka == UNBOUNDED or kb == UNBOUNDED or (ka == PLANE and kb == PLANE):
         return -math.inf
+    # A sphere or capsule against a cylinder: the cylinder's capsule, then the cylinder
+    # itself. Its box adds nothing the cylinder's own bound does not (which is within
+    # 1e-7 of the distance) and an exact segment–box distance costs more than the
+    # cylinder's first, cheap floor.
+    if kb == CYLINDER and (ka == SPHERE or ka == CAPSULE):
+        return _round_cylinder(ka, ca, ra, sa, cb, rb, sb, enough)
+    if ka == CYLINDER and (kb == SPHERE or kb == CAPSULE):
+        return _round_cylinder(kb, cb, rb, sb, ca, ra, sa, enough)
     best = _container_bound(ka, ca, ra, sa, kb, cb, rb, sb, enough)
     if best >= enough:
         return best
-    if kb == CYLINDER and ka <= CYLINDER and ka != BOX:
-        best = max(best, _axis_cylinder(ka, ca, ra, sa, cb, rb, sb))
-    if ka == CYLINDER and kb <= CYLINDER and kb != BOX:
-        best = max(best, _axis_cylinder(kb, cb, rb, sb, ca, ra, sa))
+    if kb == CYLINDER and ka == CYLINDER:
+        best = max(best, _axis_cylinder(ka, ca, ra, sa, cb, rb, sb, best, enough))
+        if best >= enough:
+            return best
+        best = max(best, _axis_cylinder(kb, cb, rb, sb, ca, ra, sa, best, enough))
     return best
 
 
 @njit
-def _axis_cylinder(ka, ca, ra, sa, cb, rb, sb):
+def _round_cylinder(ka, ca, ra, sa, cb, rb, sb, enough):
+    """Lower bound on the distance of a sphere or capsule ``a`` from the solid cylinder
+    ``b``: against the capsule around the cylinder, then, short of ``enough``, against the
+    cylinder itself."""
+    best = _bound_shapes(ka, ca, ra, sa[0], sa[1], sa[2], CAPSULE, cb, rb, sb[0], sb[1], 0.0,
+                         enough)
+    if best >= enough:
+        return best
+    return max(best, _axis_cylinder(ka, ca, ra, sa, cb, rb, sb, best, enough))
+
+
+@njit
+def _axis_cylinder(ka, ca, ra, sa, cb, rb, sb, floor, enough):
     """Lower bound on the distance of a sphere, capsule or cylinder (its capsule) ``a``
-    from the solid cylinder ``b``."""
+    from the solid cylinder ``b``; ``floor`` and ``enough`` (on that distance) as in
+    :func:`_segment_cylinder`."""
     half = 0.0 if ka == SPHERE else sa[1]
     e = _capsule_ends(ca, ra, half)
-    return _segment_cylinder(e[0], e[1], e[2], e[3], e[4], e[5], cb, rb, sb[0], sb[1]) - sa[0]
+    return _segment_cylinder(e[0], e[1], e[2], e[3], e[4], e[5], cb, rb, sb[0], sb[1],
+                             floor + sa[0], enough + sa[0]) - sa[0]
 
 
 @njit

@@ -163,36 +163,39 @@ def _local_speed(a, motion, xpos, xmat, jnt_pos, jnt_axis, jnt_type, wpos, radiu
 
 
 @njit(inline="always")
-def _path_rates(start, end_rows, m, pair_lever, delta, rates, dq):
-    """Path ``m``'s joint change ``delta`` (its first dof entries; the rest stay 0), every
-    pair's global rate (Σ_j lever_kj·|Δq_j|, in joint order) and ``dq`` = |Δq|."""
-    npair, nq = pair_lever.shape
+def _path_rates(start, end_rows, m, lever_by_joint, delta, rates, dq):
+    """Path ``m``'s joint change ``delta`` (its first dof entries; the rest stay 0), ``dq``
+    = |Δq| and every pair's global rate Σ_j lever_kj·|Δq_j|, summed in joint order
+    (``lever_by_joint``: (nq, pairs))."""
+    npair = lever_by_joint.shape[1]
     dof = end_rows.shape[1]
     for j in range(dof):
         delta[j] = end_rows[m, j] - start[j]
-    for k in range(npair):
-        rate = 0.0
-        for j in range(dof):
-            rate += pair_lever[k, j] * abs(delta[j])
-        rates[k] = rate
-    for j in range(nq):
+    for j in range(len(dq)):
         dq[j] = abs(delta[j])
+    rates[:npair] = 0.0
+    for j in range(dof):
+        step = dq[j]
+        lever = lever_by_joint[j]
+        for k in range(npair):
+            rates[k] += lever[k] * step
 
 
 @njit(inline="always")
-def _axis_growth(slot_lever, slot_moved, jnt_down, jnt_type, dq, dof, growth):
-    """W per slot (``growth``): how fast later joints can change the slot's distances to
-    the hinge axes that move it, along a path of joint change ``dq``."""
-    for a in range(len(growth)):
-        total = 0.0
-        for j in range(dof):
-            if slot_moved[a, j] and jnt_type[j] != _SLIDE and dq[j] > 0.0:
-                later = 0.0
-                for i in range(dof):
-                    if jnt_down[j, i] and slot_moved[a, i]:
-                        later += slot_lever[a, i] * dq[i]
-                total += dq[j] * later
-        growth[a] = total
+def _slot_growth(a, motion, jnt_type, dq):
+    """W of slot ``a``: how fast later joints can change its distances to the hinge axes
+    that move it, along a path of joint change ``dq`` (computed when a sample first needs
+    the slot's local speed)."""
+    slot_lever, slot_moved, jnt_down = motion[0], motion[1], motion[3]
+    total = 0.0
+    for j in range(slot_lever.shape[1]):
+        if slot_moved[a, j] and jnt_type[j] != _SLIDE and dq[j] > 0.0:
+            later = 0.0
+            for i in range(slot_lever.shape[1]):
+                if jnt_down[j, i] and slot_moved[a, i]:
+                    later += slot_lever[a, i] * dq[i]
+            total += dq[j] * later
+    return total
 
 
 @njit(inline="always")

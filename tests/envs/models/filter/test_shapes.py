@@ -233,10 +233,22 @@ def test_segment_cylinder_bound_is_below_and_within_a_micrometre_of_the_distance
         if trial % 5 == 0:
             local[1] = local[0]  # a point
         p, e = centre + rot @ local[0], centre + rot @ local[1]
-        bound = shapes._segment_cylinder(*p, *e, tuple(centre), tuple(rot.ravel()), r, h)
+        bound = shapes._segment_cylinder(*p, *e, tuple(centre), tuple(rot.ravel()), r, h,
+                                         -math.inf, math.inf)
         brute = _point_cylinder(local[0] + t * (local[1] - local[0]), r, h).min()
         length = np.linalg.norm(local[1] - local[0])
         assert bound <= brute + 1e-12, trial
         assert bound >= brute - length / 40_000 - 1e-6, trial
         checked += brute > 0.0
+        # Told it may stop at ``enough``: still a bound, and it reaches ``enough`` where
+        # the distance is clear of it; told a ``floor``: still a bound.
+        for enough in (0.5 * brute, brute - 1e-5, brute + 1e-3):
+            early = shapes._segment_cylinder(*p, *e, tuple(centre), tuple(rot.ravel()), r,
+                                             h, -math.inf, enough)
+            assert early <= brute + 1e-12, trial
+            if brute - length / 40_000 - 1e-6 >= enough:
+                assert early >= enough, trial
+        floored = shapes._segment_cylinder(*p, *e, tuple(centre), tuple(rot.ravel()), r, h,
+                                           brute - 1e-4, math.inf)
+        assert floored <= brute + 1e-12, trial
     assert checked > 300
