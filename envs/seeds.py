@@ -3,9 +3,10 @@
 Tasks. An episode's task is drawn from the env's ``np_random``, seeded by
 ``reset(seed=…)``. A training run with seed s seeds its n vector envs with s, s + 1, …,
 s + n − 1 once and lets their streams run; its training-time evaluation replays the
-tasks of seeds ``s + VALIDATION_OFFSET + e``; published results and sweeps play the
-tasks of seeds ``TEST_SEED + e`` (e = 0, 1, …) and ``make demo`` those of ``DEMO_SEED + e``,
-which no training run reaches.
+tasks of seeds ``s + VALIDATION_OFFSET + e``, and an imitation run's oracle
+demonstrations (``train.imitation``) those of ``s + IMITATION_OFFSET + e``; published
+results and sweeps play the tasks of seeds ``TEST_SEED + e`` (e = 0, 1, …) and ``make
+demo`` those of ``DEMO_SEED + e``, which no training run reaches.
 
 Scenes. An id with ``scene_seed=None`` draws a new random clutter at every reset: an
 integer seed from ``np_random`` in the half-open range ``scene_seeds`` (default
@@ -25,6 +26,9 @@ TEST_SEED = 3_000_000
 #: TEST_SEED it lies beyond the task seeds of a training run (s, s + 1, …) and of its
 #: evaluation (s + VALIDATION_OFFSET + e) for run seeds s well below 1,000,000.
 DEMO_SEED = 2_000_000
+#: Offset of the task seeds an imitation run's oracle demonstrations play
+#: (``train.imitation``): training tasks, beyond every evaluation's seeds.
+IMITATION_OFFSET = 4_000_000
 #: Scene seeds training draws from, and the disjoint range evaluation holds out.
 TRAIN_SCENES = (0, 1_000_000)
 HELD_OUT_SCENES = (1_000_000, 2_000_000)

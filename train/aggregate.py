@@ -165,6 +165,10 @@ def summarise(root: Path, env_id: str, entry: dict[str, Any]) -> dict[str, Any]:
         seeds[algo] = [r["seed"] for r in records]
         budgets[algo] = {"timesteps": sorted({int(r["timesteps"]) for r in records}),
                          "train_minutes": float(np.mean([r["train_minutes"] for r in records]))}
+        cloned = sorted({int(r["imitation_episodes"]) for r in records
+                         if "imitation_episodes" in r})
+        if cloned:
+            budgets[algo]["imitation_episodes"] = cloned
     result: dict[str, Any] = {"env": env_id, "episodes": len(oracle),
                               "task_seed": entry["baselines"]["task_seed"],
                               "env_kwargs": entry["baselines"]["env_kwargs"],

@@ -1,6 +1,6 @@
 """Hyper-parameters: ``configs/hyperparams.yml`` keyed by env id, as in rl-baselines3-zoo.
 
-One block per env id serves both algorithms; a key named after an algorithm holds that
+One block per env id serves every algorithm; a key named after an algorithm holds that
 algorithm's overrides. Unlike the zoo there is no ``default`` entry: asking for an id the
 file does not list is an error, so a typo never trains with silently wrong settings. The
 key ``_anchors`` only carries YAML anchors that entries merge in by name.
@@ -19,10 +19,17 @@ import yaml
 #: data of an installed wheel).
 CONFIG = Path(str(importlib.resources.files("ikbranch_gym.configs") / "hyperparams.yml"))
 #: The algorithms: name -> "module:class" (imported only when a run needs it).
-ALGORITHMS = {"ppo": "stable_baselines3:PPO", "maskable_ppo": "sb3_contrib:MaskablePPO"}
+#: ``bc_maskable_ppo`` is MaskablePPO started from behaviour cloning of the DP oracle
+#: (``train.imitation``).
+ALGORITHMS = {"ppo": "stable_baselines3:PPO", "maskable_ppo": "sb3_contrib:MaskablePPO",
+              "bc_maskable_ppo": "sb3_contrib:MaskablePPO"}
+#: The algorithms that clone the oracle before PPO, and the keys of their imitation phase.
+IMITATION_ALGORITHMS = ("bc_maskable_ppo",)
+IMITATION_KEYS = ("imitation_episodes", "imitation_epochs", "imitation_batch_size",
+                  "imitation_learning_rate")
 #: Keys of an entry that are not constructor arguments of the algorithm.
 RUN_KEYS = ("n_timesteps", "n_envs", "policy", "eval_freq", "n_eval_episodes",
-            "checkpoint_freq", "env_kwargs", "normalize_reward")
+            "checkpoint_freq", "env_kwargs", "normalize_reward", *IMITATION_KEYS)
 ANCHORS = "_anchors"
 
 
@@ -30,6 +37,11 @@ def check_algorithm(algo: str) -> str:
     if algo not in ALGORITHMS:
         raise ValueError(f"unknown algorithm {algo!r}; choose one of {', '.join(ALGORITHMS)}")
     return algo
+
+
+def uses_masks(algo: str) -> bool:
+    """Whether ``algo`` trains a masked policy (sb3-contrib's MaskablePPO)."""
+    return ALGORITHMS[check_algorithm(algo)].endswith(":MaskablePPO")
 
 
 def algorithm_class(algo: str) -> type:

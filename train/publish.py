@@ -358,6 +358,9 @@ def render_sweep(aggregate_path: Path = SWEEP_RESULTS / "aggregate.json") -> lis
                   "|---|---:|---:|---:|---|---|---:|---|---|---|---:|"]
         for policy, row in record["policies"].items():
             steps = ", ".join(f"{n:,}" for n in row.get("timesteps", ()) if n)
+            if row.get("imitation_episodes"):
+                steps += " after " + ", ".join(f"{n:,}" for n in row["imitation_episodes"]) \
+                    + " oracle episodes"
             minutes = f"{row['train_minutes']:.1f}" if row.get("seeds") else ""
             improvement = row.get("improvement", {})
             lines.append(

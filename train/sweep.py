@@ -86,6 +86,7 @@ def run_trial(spec: dict[str, Any]) -> dict[str, Any]:
     from ikbranch_gym.envs.seeds import TEST_SEED, held_out
     from ikbranch_gym.train.callbacks import LATEST
     from ikbranch_gym.train.hyperparams import hyperparams_for
+    from ikbranch_gym.train.imitation import RECORD as IMITATION_RECORD
     from ikbranch_gym.train.training import RunConfig, train
 
     root, env_id, algo = Path(spec["root"]), spec["env_id"], spec["algo"]
@@ -115,6 +116,7 @@ def run_trial(spec: dict[str, Any]) -> dict[str, Any]:
                     str(directory)])
     trained = time.perf_counter()
     model = str(directory / "model.zip")
+    cloned = directory / IMITATION_RECORD
     result = evaluate(env_id, [model], episodes, TEST_SEED, env_kwargs=env_kwargs)
     params = hyperparams_for(env_id, algo)
     record = {
@@ -126,6 +128,8 @@ def run_trial(spec: dict[str, Any]) -> dict[str, Any]:
         "policy": result["policies"][model.removesuffix(".zip")],
         "oracle": result["policies"]["dp_oracle"],
     }
+    if cloned.exists():  # the oracle's episodes it started from (train.imitation)
+        record["imitation_episodes"] = json.loads(cloned.read_text())["episodes"]
     _write_json(done_path(spec), record)
     return record
 

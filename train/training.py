@@ -1,4 +1,5 @@
-"""Train PPO or MaskablePPO on a registered env, into a self-describing run directory.
+"""Train PPO, MaskablePPO or MaskablePPO after cloning the DP oracle (``bc_maskable_ppo``,
+``train.imitation``) on a registered env, into a self-describing run directory.
 
 Run directory layout::
 
@@ -10,6 +11,7 @@ Run directory layout::
     checkpoints/ckpt_<steps>.zip, checkpoints/latest.zip   crash-safe checkpoints
     checkpoints/vecnormalize.pkl   reward statistics (with ``normalize_reward``), for resume
     evaluations.npz held-out evaluation history (the learning curve)
+    imitation.json  bc_maskable_ppo: the oracle's episodes and steps, the fit
     tb/             TensorBoard logs
 """
 
@@ -43,10 +45,12 @@ from ikbranch_gym.train.callbacks import (
     atomic_save,
 )
 from ikbranch_gym.train.hyperparams import (
+    IMITATION_ALGORITHMS,
     RUN_KEYS,
     algorithm_class,
     check_algorithm,
     hyperparams_for,
+    uses_masks,
 )
 from ikbranch_gym.train.vec_env import make_native_vec_env
 
@@ -123,7 +127,7 @@ def branch_policy(algo: str, factory: Callable[[], gym.Env],
         kwargs = branch_policy_kwargs(probe, **overrides)
     finally:
         probe.close()
-    return (MaskableBranchPolicy if algo == "maskable_ppo" else BranchPolicy), kwargs
+    return (MaskableBranchPolicy if uses_masks(algo) else BranchPolicy), kwargs
 
 
 def resolve(run: RunConfig) -> dict[str, Any]:
@@ -202,6 +206,15 @@ def train(run: RunConfig, argv: list[str] | None = None) -> BaseAlgorithm:
                 policy, train_env, seed=run.seed, verbose=run.verbose,
                 tensorboard_log=str(run_dir / "tb"), **algo_kwargs,
             )
+            if run.algo in IMITATION_ALGORITHMS:
+                from ikbranch_gym.train.imitation import warm_start
+
+                demonstrator = factory()
+                try:
+                    returns = train_env.ret_rms if isinstance(train_env, VecNormalize) else None
+                    warm_start(model, demonstrator, params, run.seed, returns, run_dir)
+                finally:
+                    demonstrator.close()
         per_env = lambda steps: max(1, steps // n_envs)  # noqa: E731 (callbacks count vec steps)
         checkpoint = AtomicCheckpointCallback(per_env(params["checkpoint_freq"]), checkpoints)
         evaluation = HeldOutEvalCallback(
@@ -212,7 +225,7 @@ def train(run: RunConfig, argv: list[str] | None = None) -> BaseAlgorithm:
             best_model_save_path=str(run_dir / "best"),
             log_path=str(run_dir),
             deterministic=True,
-            use_masking=run.algo == "maskable_ppo",
+            use_masking=uses_masks(run.algo),
             verbose=run.verbose,
         )
         remaining = params["n_timesteps"] - model.num_timesteps

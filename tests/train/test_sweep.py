@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from ikbranch_gym.train import aggregate, sweep
+from ikbranch_gym.train import aggregate, publish, sweep
 
 TINY = ['--hyperparams', '{"n_steps": 32, "batch_size": 32, "n_epochs": 1, '
         '"eval_freq": 64, "n_eval_episodes": 2, "checkpoint_freq": 64}']
@@ -43,7 +43,6 @@ def test_tiny_sweep_writes_run_directories_and_resumes(tmp_path):
                           for seed, d in models.items()}
         # Archived, the records alone aggregate to the same numbers, and a later sweep
         # (another root: another machine or run) skips the archived trials.
-        from ikbranch_gym.train import publish
 
         records = aggregate.aggregate(tmp_path)
         archived = publish.archive(tmp_path, store)
@@ -118,6 +117,20 @@ def _synthetic_root(tmp_path, scores: np.ndarray, rival: np.ndarray,
         directory.mkdir(parents=True)
         (directory / "evaluation.json").write_text(json.dumps(trial))
     return env
+
+
+def test_a_cloned_rows_oracle_episodes_are_published_beside_its_steps(tmp_path):
+    scores = np.random.default_rng(1).uniform(0.5, 1.0, size=(2, 40))
+    env = _synthetic_root(tmp_path, scores, rival=np.full(40, 0.2))
+    for seed in range(2):  # as a bc_maskable_ppo trial records them (train.sweep)
+        path = sweep.run_dir(tmp_path, env, "ppo", seed) / "evaluation.json"
+        path.write_text(json.dumps({**json.loads(path.read_text()), "imitation_episodes": 200}))
+    records = aggregate.aggregate(tmp_path)
+    assert records[env]["policies"]["ppo"]["imitation_episodes"] == [200]
+    (tmp_path / "aggregate.json").write_text(json.dumps(records))
+    lines = publish.render_sweep(tmp_path / "aggregate.json")
+    assert any(line.startswith("| ppo | 2 | 1,000 after 200 oracle episodes |")
+               for line in lines)
 
 
 def test_aggregation_recovers_known_iqm_intervals_and_improvement(tmp_path):
