@@ -76,6 +76,12 @@ def _share(value: float | None) -> str:
     return "n/a" if value is None else f"{100 * value:.1f} %"
 
 
+def _started_by(record: Path) -> str:
+    """The command that started a run: the first line of its ``command.txt`` (each
+    resume appends its own, the same command with ``--resume`` or repeated)."""
+    return record.read_text().strip().splitlines()[0]
+
+
 def _portable(command: str, root: Path) -> str:
     """A recorded command as a reader types it: ``python -m …``, with the run directory
     under the default sweep root ``runs/sweep`` (wherever the sweep ``root`` was)."""
@@ -240,7 +246,7 @@ def publish(root: Path, records: dict[str, dict[str, Any]], *, out: Path = SWEEP
                     f"{env_id} {algo}: the representative seed {seed}'s model is not at "
                     f"{trained}; run `python -m train.sweep --env {env_id} --algo {algo} "
                     f"--seeds {seed} --archive /nonexistent` to train it again")
-            trial["command"] = _portable((directory / "command.txt").read_text().strip(), root)
+            trial["command"] = _portable(_started_by(directory / "command.txt"), root)
             copies.append((trained, models / name / f"{algo}.zip", trial, target))
     written = []
     out.mkdir(parents=True, exist_ok=True)

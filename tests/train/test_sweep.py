@@ -133,6 +133,14 @@ def test_a_cloned_rows_oracle_episodes_are_published_beside_its_steps(tmp_path):
                for line in lines)
 
 
+def test_a_resumed_run_publishes_the_command_that_started_it(tmp_path):
+    record = tmp_path / "command.txt"
+    started = f"/venv/bin/python -m train --algo ppo --run-dir {tmp_path}/runs/x/seed2"
+    record.write_text(f"{started}\n{started} --resume\n")
+    assert publish._portable(publish._started_by(record), tmp_path) == (
+        "python -m train --algo ppo --run-dir runs/sweep/runs/x/seed2")
+
+
 def test_aggregation_recovers_known_iqm_intervals_and_improvement(tmp_path):
     rng = np.random.default_rng(0)
     scores = rng.uniform(0.5, 1.0, size=(2, 200))
