@@ -409,6 +409,8 @@ def readme_summary(records: dict[str, dict[str, Any]]) -> list[str]:
                 continue
             budget = (f"{row['runs']} × {row['timesteps'][0]:,}" if row.get("seeds")
                       else "")
+            if row.get("imitation_episodes"):
+                budget += f" after {row['imitation_episodes'][0]:,} oracle episodes"
             improvement = row.get("improvement", {}).get(PAPER_RULE)
             lines.append(
                 f"| {env_name(env_id) if first else ''} | {policy} | {budget} | "

@@ -131,6 +131,8 @@ def test_a_cloned_rows_oracle_episodes_are_published_beside_its_steps(tmp_path):
     lines = publish.render_sweep(tmp_path / "aggregate.json")
     assert any(line.startswith("| ppo | 2 | 1,000 after 200 oracle episodes |")
                for line in lines)
+    summary = publish.readme_summary(records)
+    assert any("| ppo | 2 × 1,000 after 200 oracle episodes |" in line for line in summary)
 
 
 def test_a_resumed_run_publishes_the_command_that_started_it(tmp_path):
