@@ -25,6 +25,7 @@ import numpy as np
 import torch
 from sb3_contrib import MaskablePPO
 from stable_baselines3.common.running_mean_std import RunningMeanStd
+from stable_baselines3.common.vec_env import VecNormalize
 
 from ikbranch_gym.agents import DPOracle
 from ikbranch_gym.agents.base import action_mask
@@ -154,24 +155,24 @@ def clone(model: MaskablePPO, demos: Demonstrations, *, epochs: int, batch_size:
 
 
 def warm_start(model: MaskablePPO, env: gym.Env, params: dict[str, Any], seed: int,
-               reward_stats: RunningMeanStd | None, run_dir: Path) -> dict[str, Any]:
+               normalizer: VecNormalize | None, run_dir: Path) -> dict[str, Any]:
     """The imitation phase of a run: demonstrations on ``env`` (a single env of the run's
-    id and kwargs), ``reward_stats`` (``VecNormalize.ret_rms``, None without reward
-    normalisation) seeded from them, the policy cloned; the record is written to
-    ``run_dir / RECORD`` and returned."""
+    id and kwargs), the return statistics of ``normalizer`` (the training env's
+    ``VecNormalize``, None without reward normalisation) seeded from them, the policy
+    cloned; the record is written to ``run_dir / RECORD`` and returned."""
     missing = [key for key in IMITATION_KEYS if key not in params]
     if missing:
         raise ValueError(f"bc_maskable_ppo needs {', '.join(missing)} in its hyper-parameters")
-    gamma = float(params.get("gamma", model.gamma))
     demos = oracle_demonstrations(env, int(params["imitation_episodes"]),
                                   seed + IMITATION_OFFSET)
     scale = 1.0
-    if reward_stats is not None:
-        seed_reward_scale(reward_stats, demos, gamma)
-        scale = float(np.sqrt(reward_stats.var + 1e-8))  # VecNormalize's own epsilon
+    if normalizer is not None:
+        seed_reward_scale(normalizer.ret_rms, demos, normalizer.gamma)
+        # The divisor VecNormalize.normalize_reward applies.
+        scale = float(np.sqrt(normalizer.ret_rms.var + normalizer.epsilon))
     fitted = clone(model, demos, epochs=params["imitation_epochs"],
                    batch_size=params["imitation_batch_size"],
-                   learning_rate=float(params["imitation_learning_rate"]), gamma=gamma,
+                   learning_rate=float(params["imitation_learning_rate"]), gamma=model.gamma,
                    reward_scale=scale, seed=seed)
     record = {"episodes": demos.episodes, "steps": len(demos),
               "task_seeds": [seed + IMITATION_OFFSET, seed + IMITATION_OFFSET + demos.episodes],

@@ -76,6 +76,14 @@ def _share(value: float | None) -> str:
     return "n/a" if value is None else f"{100 * value:.1f} %"
 
 
+def _cloned_from(row: dict[str, Any]) -> str:
+    """A row's budget note for the oracle's episodes it was cloned from (none: empty)."""
+    episodes = row.get("imitation_episodes")
+    if not episodes:
+        return ""
+    return " after " + ", ".join(f"{n:,}" for n in episodes) + " oracle episodes"
+
+
 def _started_by(record: Path) -> str:
     """The command that started a run: the first line of its ``command.txt`` (each
     resume appends its own, the same command with ``--resume`` or repeated)."""
@@ -364,9 +372,7 @@ def render_sweep(aggregate_path: Path = SWEEP_RESULTS / "aggregate.json") -> lis
                   "|---|---:|---:|---:|---|---|---:|---|---|---|---:|"]
         for policy, row in record["policies"].items():
             steps = ", ".join(f"{n:,}" for n in row.get("timesteps", ()) if n)
-            if row.get("imitation_episodes"):
-                steps += " after " + ", ".join(f"{n:,}" for n in row["imitation_episodes"]) \
-                    + " oracle episodes"
+            steps += _cloned_from(row)
             minutes = f"{row['train_minutes']:.1f}" if row.get("seeds") else ""
             improvement = row.get("improvement", {})
             lines.append(
@@ -409,8 +415,7 @@ def readme_summary(records: dict[str, dict[str, Any]]) -> list[str]:
                 continue
             budget = (f"{row['runs']} × {row['timesteps'][0]:,}" if row.get("seeds")
                       else "")
-            if row.get("imitation_episodes"):
-                budget += f" after {row['imitation_episodes'][0]:,} oracle episodes"
+            budget += _cloned_from(row)
             improvement = row.get("improvement", {}).get(PAPER_RULE)
             lines.append(
                 f"| {env_name(env_id) if first else ''} | {policy} | {budget} | "

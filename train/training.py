@@ -211,8 +211,8 @@ def train(run: RunConfig, argv: list[str] | None = None) -> BaseAlgorithm:
 
                 demonstrator = factory()
                 try:
-                    returns = train_env.ret_rms if isinstance(train_env, VecNormalize) else None
-                    warm_start(model, demonstrator, params, run.seed, returns, run_dir)
+                    normalizer = train_env if isinstance(train_env, VecNormalize) else None
+                    warm_start(model, demonstrator, params, run.seed, normalizer, run_dir)
                 finally:
                     demonstrator.close()
         per_env = lambda steps: max(1, steps // n_envs)  # noqa: E731 (callbacks count vec steps)
