@@ -55,6 +55,10 @@ def test_the_sweep_is_published_with_its_models():
         assert policy["success_rate"] == pytest.approx(np.mean(policy["successes"]), abs=1e-12)
         assert policy["mean_return"] == pytest.approx(np.mean(policy["returns"]), abs=1e-9)
         assert np.all(np.array(policy["returns"]) <= np.array(trial["oracle"]["returns"]) + 1e-9)
+        # The row's command is the one command that trains it, as a reader types it.
+        command = trial["command"]
+        assert command.startswith(f"python -m train --algo {algo} --env {env_id} ")
+        assert command.count("-m train") == 1, command
 
 
 def test_the_published_mean_gaps_follow_from_the_archived_returns():
