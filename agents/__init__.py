@@ -21,7 +21,8 @@ made from an id or a factory and wrapped as the policy was trained (its docstrin
 
 ``agents.branch_policy`` holds the SB3 policy classes that score every branch with one
 shared network (``policy: BranchPolicy`` in ``configs/``); like ``agents.sb3`` it is
-imported on demand.
+imported on demand. ``agents.exported`` decides with a trained model's actor exported to
+an ``.npz`` (``ikbranch export``), with numpy alone.
 """
 
 from __future__ import annotations

@@ -9,6 +9,8 @@ What can be evaluated (:func:`evaluate`'s ``policies``; :data:`POLICY_FORMS`):
 
 - a baseline spec (``paper_rule``, ``receding_dp:4``, …: ``agents.BASELINES``);
 - the path of an SB3 model zip (PPO or MaskablePPO, recognised from the file);
+- the path of a model's actor exported by ``ikbranch export`` (``.npz``:
+  ``agents.exported``, numpy alone);
 - ``MODULE:ATTR`` (``MODULE`` may also be a ``.py`` file): the attribute is resolved as
   a Python object below;
 - a Python object: an SB3 model (anything with SB3's ``predict``, masks passed where its
@@ -64,7 +66,8 @@ ORACLE = "dp_oracle"
 #: What a policy may be, as the CLI's error messages say it.
 POLICY_FORMS = (
     f"a baseline name ({', '.join(BASELINES)}; receding_dp:H, random:SEED, fixed:BRANCH), "
-    "the path of an SB3 model zip (PPO or MaskablePPO), or MODULE:ATTR (MODULE a module "
+    "the path of an SB3 model zip (PPO or MaskablePPO), the path of a policy exported "
+    "from one (.npz, ikbranch export), or MODULE:ATTR (MODULE a module "
     "or a .py file; ATTR a callable (obs, mask) -> action, a factory of one called with no "
     "argument, or an SB3 model)"
 )
@@ -306,7 +309,8 @@ def build_policy(spec: str, env: gym.Env, seed: int) -> tuple[str, Policy]:
     (``SPEC_ARGUMENTS``): ``fixed:2`` or ``fixed:back/elbow-up/wrist+`` (the branch),
     ``receding_dp:4`` (the horizon), ``random:7`` (the generator's seed; default the
     evaluation seed); or a path ending in ``.zip`` (an SB3 model; its name is the path
-    without ``.zip``: training writes every run's model as ``model.zip``); or
+    without ``.zip``: training writes every run's model as ``model.zip``) or ``.npz`` (an
+    exported actor, ``agents.exported``; its name the path without ``.npz``); or
     ``MODULE:ATTR`` (:func:`resolve`, then :func:`as_policy`; its name is the spec).
     ``ValueError`` for anything else, saying what is accepted (:data:`POLICY_FORMS`).
     """
@@ -320,6 +324,10 @@ def build_policy(spec: str, env: gym.Env, seed: int) -> tuple[str, Policy]:
         from .sb3 import SB3Policy  # torch is imported only when a model is evaluated
 
         return spec.removesuffix(".zip"), SB3Policy.load(spec, env)
+    if spec.endswith(".npz"):
+        from .exported import ExportedPolicy
+
+        return spec.removesuffix(".npz"), ExportedPolicy.load(spec, env)
     if colon and not spec.endswith(":"):
         return as_policy(resolve(spec), env, spec)
     hint = ""

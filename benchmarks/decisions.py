@@ -16,7 +16,14 @@ calls load kernels and allocate). Then, per policy:
   observations and masks it met (what a controller calling the network directly pays).
 - **network, batched**: the decisions of ``--batch`` envs in one forward pass, per
   decision. ``receding_dp`` has no batched form: N decisions are N plans, so its batched
-  time is its single one.
+  time is its single one;
+- **exported, one** and **exported, batched**: the same decisions by the model's actor
+  exported for a controller (``agents.exported``: numpy alone, what ``ikbranch export``
+  writes), one at a time and ``--batch`` at once; the run asserts that they are the
+  model's decisions.
+
+torch and numpy's BLAS each run one thread (a controller beside other work; on these
+2-core machines a second thread only waits for the first).
 
 The ratios are receding_dp's time over the policy's, from the same run. The run is
 repeated with the policies in reverse order, and both are printed: the times must not
@@ -24,6 +31,11 @@ depend on what ran before. Numbers depend on the machine and its load.
 """
 
 from __future__ import annotations
+
+import os
+
+# Before numpy is imported: its BLAS reads this once.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse
 import glob
@@ -36,6 +48,7 @@ import torch
 import ikbranch_gym.envs as envs
 from ikbranch_gym.agents.base import action_mask
 from ikbranch_gym.agents.evaluation import build_policy
+from ikbranch_gym.agents.exported import ExportedPolicy, exported_arrays
 from ikbranch_gym.agents.sb3 import SB3Policy
 from ikbranch_gym.envs.seeds import TEST_SEED, held_out
 
@@ -45,7 +58,7 @@ def play(env_id: str, spec: str, episodes: int, batch: int) -> dict:
     it decided on."""
     env = gym.make(env_id, **held_out(env_id))
     name, policy = build_policy(spec, env, TEST_SEED)
-    times, observations, masks = [], [], []
+    times, observations, masks, actions = [], [], [], []
     for e in range(-1, episodes):  # e = −1: the warm-up
         observation, info = env.reset(seed=TEST_SEED - 1 if e < 0 else TEST_SEED + e)
         done, start = False, True
@@ -60,14 +73,36 @@ def play(env_id: str, spec: str, episodes: int, batch: int) -> dict:
                 times.append(spent)
                 observations.append(observation)
                 masks.append(mask)
+                actions.append(int(np.asarray(action)))
             observation, _, terminated, truncated, info = env.step(int(np.asarray(action)))
             done, start = bool(terminated or truncated), False
     env.close()
     row = {"name": name, "decisions": len(times), "predict": float(np.mean(times))}
     if isinstance(policy, SB3Policy):
-        row.update(network(policy, np.asarray(observations, dtype=np.float32),
-                           np.asarray(masks, dtype=bool), batch))
+        observed = np.asarray(observations, dtype=np.float32)
+        allowed = np.asarray(masks, dtype=bool)
+        row.update(network(policy, observed, allowed, batch))
+        row.update(exported(policy, observed, allowed, np.asarray(actions), batch))
     return row
+
+
+def exported(policy: SB3Policy, observations: np.ndarray, masks: np.ndarray,
+             actions: np.ndarray, batch: int) -> dict:
+    """The model's actor exported (``agents.exported``): seconds per decision, one at a
+    time and ``batch`` at once, after asserting its decisions are the model's."""
+    actor = ExportedPolicy(exported_arrays(policy.model))
+    given = masks if actor.maskable else None
+    decided = actor.decide_many(observations, given)
+    assert np.array_equal(decided, actions), "the exported actor decided otherwise"
+    out = {}
+    for label, size in (("exported one", 1), ("exported batched", batch)):
+        rows = [slice(start, start + size) for start in range(0, len(observations), size)]
+        actor.decide_many(observations[rows[0]], None if given is None else given[rows[0]])
+        tick = time.perf_counter()
+        for part in rows:
+            actor.decide_many(observations[part], None if given is None else given[part])
+        out[label] = (time.perf_counter() - tick) / len(observations)
+    return out
 
 
 def network(policy: SB3Policy, observations: np.ndarray, masks: np.ndarray,
@@ -118,15 +153,21 @@ def main() -> None:
         reference = rows[planner]["predict"]
         print(f"order: {order}\n")
         print("| policy | decisions | predict | × receding_dp | network, one "
-              "| network, batched | × receding_dp, batched |")
-        print("|---|---:|---:|---:|---:|---:|---:|")
+              "| network, batched | × receding_dp, batched | exported, one | × receding_dp "
+              "| exported, batched | × receding_dp |")
+        print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
         for spec in specs:
             row = rows[spec.removesuffix(".zip")]
             one, batched = row.get("one"), row.get("batched", row["predict"])
+            cells = []
+            for label in ("exported one", "exported batched"):
+                value = row.get(label)
+                cells += ["", ""] if value is None else [f"{value * 1e3:.3f}",
+                                                         f"{reference / value:.1f}"]
             print(f"| {row['name']} | {row['decisions']} | {row['predict'] * 1e3:.3f} "
                   f"| {reference / row['predict']:.1f} "
                   f"| {'' if one is None else f'{one * 1e3:.3f}'} | {batched * 1e3:.3f} "
-                  f"| {reference / batched:.1f} |")
+                  f"| {reference / batched:.1f} | {' | '.join(cells)} |")
         print()
 
 

@@ -6,6 +6,7 @@
     ikbranch demo      [--run-dir runs/demo] …                        (python -m train.demo)
     ikbranch sweep     --env … [--algo …] [--seeds 0-4] …             (python -m train.sweep)
     ikbranch aggregate [--root runs/sweep] [--out F]                  (python -m train.aggregate)
+    ikbranch export    MODEL.zip --env ID [--out F.npz]              (python -m train.export)
 
 Every subcommand forwards its arguments unchanged to that module's ``main`` (so
 ``ikbranch train --help`` is ``python -m train --help``); the ``python -m`` forms keep
@@ -34,12 +35,14 @@ COMMANDS: dict[str, tuple[str, str]] = {
               "env x algorithm x seed trials on Ray Tune (python -m train.sweep)"),
     "aggregate": ("ikbranch_gym.train.aggregate",
                   "interval estimates over a sweep (python -m train.aggregate)"),
+    "export": ("ikbranch_gym.train.export",
+               "a trained model's actor as a numpy-only .npz (python -m train.export)"),
 }
 
 
 #: subcommand -> the optional dependencies (``pyproject.toml`` extra) it needs.
 EXTRAS = {"plan": "plan", "train": "train", "evaluate": "train", "demo": "train",
-          "sweep": "sweep", "aggregate": "sweep"}
+          "sweep": "sweep", "aggregate": "sweep", "export": "train"}
 
 
 def usage() -> str:

@@ -6,7 +6,8 @@
 
 ``--policy`` is repeatable: a baseline name (``paper_rule``, ``paper_pair_rule``,
 ``dp_oracle``, ``receding_dp[:H]``, ``random[:SEED]``, ``fixed[:BRANCH]``), an SB3 model
-zip (PPO or MaskablePPO, recognised from the file), or ``MODULE:ATTR`` (``MODULE`` a module
+zip (PPO or MaskablePPO, recognised from the file), its actor exported by ``ikbranch
+export`` (``.npz``), or ``MODULE:ATTR`` (``MODULE`` a module
 importable from here or the working directory, or a ``.py`` file): ``ATTR`` is a callable
 ``policy(obs, mask) -> action`` (``mask`` the (K,) bool array of the branches allowed), a
 factory of one (a class, or a function called with no argument), or an SB3 model object.

@@ -22,6 +22,7 @@ FORWARDED = {
     "demo": ("ikbranch_gym.train.demo", "usage: python -m train.demo"),
     "sweep": ("ikbranch_gym.train.sweep", "usage: python -m train.sweep"),
     "aggregate": ("ikbranch_gym.train.aggregate", "usage: python -m train.aggregate"),
+    "export": ("ikbranch_gym.train.export", "usage: ikbranch export"),
 }
 
 
