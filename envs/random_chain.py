@@ -112,9 +112,11 @@ def _chain(rng, lower, upper, n, bound, lever, resolution, chain, rounds):
     index, tries, draws = 1, 0, 0
     while index <= n:
         if verdicts[index] == 0:
-            # Every unchecked link from here on in one call, as the generator asks them.
-            count = 0
-            for i in range(index, n + 1):
+            # The link the walk stands at and every unchecked one after the next, in one
+            # call, as the generator asks them.
+            links[0] = index
+            count = 1
+            for i in range(index + 2, n + 1):
                 if verdicts[i] == 0:
                     links[count] = i
                     count += 1

@@ -76,3 +76,31 @@ def test_a_chain_that_cannot_move_is_reported():
             arm, np.random.default_rng(0), 3, half_space(arm),
             lambda q0, q1: np.zeros(len(q0), dtype=bool),
         )
+
+
+def test_no_link_is_checked_while_its_start_may_still_be_redrawn():
+    # A call asks the link the walk stands at and later ones, never the link right after
+    # it: a redraw of the configuration between them would waste that check. Each link
+    # (its two configurations) is asked once, and the walk is the one-at-a-time walk.
+    arm = make_arm("anthropomorphic")
+    is_free = half_space(arm)
+    limit = np.ptp(arm.joint_limits[0]) / 6
+    calls: list[list[tuple[bytes, bytes]]] = []
+
+    def short_turns(q0, q1):
+        calls.append([(a.tobytes(), b.tobytes()) for a, b in zip(q0, q1, strict=True)])
+        return np.abs(np.asarray(q1)[:, 0] - np.asarray(q0)[:, 0]) <= limit
+
+    def one_at_a_time(q0, q1):
+        return np.array([short_turns(q0[i : i + 1], q1[i : i + 1])[0]
+                         for i in range(len(q0))])
+
+    for seed in range(5):
+        calls.clear()
+        task = generator(arm, np.random.default_rng(seed), 6, is_free, short_turns)
+        for call in calls:  # the first link asked is where the walk stands
+            assert not any(start == call[0][1] for start, _ in call[1:])
+        asked = [link for call in calls for link in call]
+        assert len(asked) == len(set(asked))
+        assert_same_task(task, generator(arm, np.random.default_rng(seed), 6, is_free,
+                                         one_at_a_time))
