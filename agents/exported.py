@@ -90,9 +90,11 @@ class ExportedPolicy:
             raise ValueError(f"{path}: not an exported policy ({error})") from error
         if arrays.get("format") is None or str(arrays["format"]) != FORMAT:
             raise ValueError(f"{path}: not an exported policy (no format {FORMAT!r})")
-        if int(arrays.get("version", -1)) != VERSION:
-            raise ValueError(f"{path}: exported policy version {int(arrays['version'])}; "
-                             f"this package reads version {VERSION}")
+        version = arrays.get("version")
+        if version is None or int(version) != VERSION:
+            raise ValueError(f"{path}: exported policy version "
+                             f"{'missing' if version is None else int(version)}; this "
+                             f"package reads version {VERSION}")
         missing = sorted(set(_required(str(arrays.get("kind")), arrays)) - set(arrays))
         if missing:
             raise ValueError(f"{path}: exported policy without {', '.join(missing)}")

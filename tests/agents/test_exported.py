@@ -165,6 +165,10 @@ def test_files_that_are_not_exported_policies_are_named(tmp_path, cartesian):
     np.savez(newer, **{**arrays, "version": np.array(2)})
     with pytest.raises(ValueError, match=r"newer\.npz: exported policy version 2"):
         ExportedPolicy.load(newer)
+    unversioned = tmp_path / "unversioned.npz"
+    np.savez(unversioned, **{k: v for k, v in arrays.items() if k != "version"})
+    with pytest.raises(ValueError, match="exported policy version missing"):
+        ExportedPolicy.load(unversioned)
     partial = tmp_path / "partial.npz"
     np.savez(partial, **{k: v for k, v in arrays.items() if k != "action_bias"})
     with pytest.raises(ValueError, match=r"partial\.npz: exported policy without action_bias"):
