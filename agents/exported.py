@@ -98,6 +98,9 @@ class ExportedPolicy:
         missing = sorted(set(_required(str(arrays.get("kind")), arrays)) - set(arrays))
         if missing:
             raise ValueError(f"{path}: exported policy without {', '.join(missing)}")
+        if str(arrays["kind"]) == "mlp" and str(arrays["activation"]) not in ACTIVATIONS:
+            raise ValueError(f"{path}: activation {str(arrays['activation'])!r}; this package "
+                             f"reads {', '.join(ACTIVATIONS)}")
         return cls(arrays, name=Path(path).stem, env=env)
 
     # -------------------------------------------------------------------- decisions
@@ -210,8 +213,9 @@ def exported_arrays(model: BaseAlgorithm) -> dict[str, np.ndarray]:
     }
     extractor = policy.features_extractor
     if isinstance(extractor, BranchFeatures):
-        later = extractor.later if extractor.compact else 0
-        slots = [[getattr(extractor, f"slot{h}_{part}").numpy() for h in range(1, later + 1)]
+        # Later slots are summarised (``later`` > 0) with the compact observation only.
+        slots = [[getattr(extractor, f"slot{h}_{part}").numpy()
+                  for h in range(1, extractor.later + 1)]
                  for part in ("valid", "in", "hit")]
         k = extractor.k
         out.update(

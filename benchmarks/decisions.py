@@ -40,6 +40,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import argparse
 import glob
 import time
+from collections.abc import Callable
 
 import gymnasium as gym
 import numpy as np
@@ -94,15 +95,12 @@ def exported(policy: SB3Policy, observations: np.ndarray, masks: np.ndarray,
     given = masks if actor.maskable else None
     decided = actor.decide_many(observations, given)
     assert np.array_equal(decided, actions), "the exported actor decided otherwise"
-    out = {}
-    for label, size in (("exported one", 1), ("exported batched", batch)):
-        rows = [slice(start, start + size) for start in range(0, len(observations), size)]
-        actor.decide_many(observations[rows[0]], None if given is None else given[rows[0]])
-        tick = time.perf_counter()
-        for part in rows:
-            actor.decide_many(observations[part], None if given is None else given[part])
-        out[label] = (time.perf_counter() - tick) / len(observations)
-    return out
+
+    def decide(rows: slice) -> None:
+        actor.decide_many(observations[rows], None if given is None else given[rows])
+
+    return {f"exported {label}": seconds
+            for label, seconds in per_decision(decide, len(observations), batch).items()}
 
 
 def network(policy: SB3Policy, observations: np.ndarray, masks: np.ndarray,
@@ -119,14 +117,20 @@ def network(policy: SB3Policy, observations: np.ndarray, masks: np.ndarray,
         else:
             net(obs[rows], deterministic=True)
 
+    with torch.inference_mode():
+        return per_decision(decide, len(obs), batch)
+
+
+def per_decision(decide: Callable[[slice], None], count: int, batch: int) -> dict:
+    """Seconds per decision of ``decide`` (the decisions of a slice of ``count`` rows),
+    ``one`` at a time and ``batched`` ``batch`` at once, each after an untimed call."""
     out = {}
     for label, size in (("one", 1), ("batched", batch)):
-        with torch.inference_mode():
-            decide(slice(0, size))  # warm-up
-            tick = time.perf_counter()
-            for start in range(0, len(obs), size):
-                decide(slice(start, start + size))
-            out[label] = (time.perf_counter() - tick) / len(obs)
+        decide(slice(0, size))  # warm-up
+        tick = time.perf_counter()
+        for start in range(0, count, size):
+            decide(slice(start, start + size))
+        out[label] = (time.perf_counter() - tick) / count
     return out
 
 

@@ -51,13 +51,20 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     return args
 
 
+def model_logits(model: SB3Policy, observations: np.ndarray) -> np.ndarray:
+    """(B, K) the logits ``model``'s actor gives observations (B, size), in torch."""
+    net: Any = model.model.policy  # SB3 types its modules as Tensor | Module
+    with torch.inference_mode():
+        features = net.extract_features(torch.as_tensor(observations), net.features_extractor)
+        return net.action_net(net.mlp_extractor.forward_actor(features)).numpy()
+
+
 def compare(model: SB3Policy, exported: ExportedPolicy, env: gym.Env,
             episodes: int) -> tuple[int, int, float]:
     """(decisions compared, decisions that differ, largest logit difference) of
     ``exported`` beside ``model`` on ``episodes`` held-out tasks of ``env`` (the model's
     choices are played)."""
-    net: Any = model.model.policy  # SB3 types its modules as Tensor | Module
-    net.set_training_mode(False)
+    model.model.policy.set_training_mode(False)
     compared = differ = 0
     largest = 0.0
     for e in range(episodes):
@@ -67,9 +74,7 @@ def compare(model: SB3Policy, exported: ExportedPolicy, env: gym.Env,
             mask = action_mask(env, info)
             with torch.inference_mode():
                 action, _ = model.predict(observation, deterministic=True, action_masks=mask)
-                features = net.extract_features(torch.as_tensor(observation[None]),
-                                                net.features_extractor)
-                logits = net.action_net(net.mlp_extractor.forward_actor(features)).numpy()
+            logits = model_logits(model, observation[None])
             mine, _ = exported.predict(observation, action_masks=mask)
             compared += 1
             differ += int(int(mine) != int(action))

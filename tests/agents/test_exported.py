@@ -9,7 +9,6 @@ import sys
 import gymnasium as gym
 import numpy as np
 import pytest
-import torch
 from sb3_contrib import MaskablePPO
 from stable_baselines3 import PPO
 from torch import nn
@@ -21,6 +20,7 @@ from ikbranch_gym.agents.exported import ExportedPolicy, export_policy, exported
 from ikbranch_gym.agents.sb3 import SB3Policy
 from ikbranch_gym.envs.seeds import TEST_SEED, held_out
 from ikbranch_gym.train import export as export_cli
+from ikbranch_gym.train.export import model_logits
 
 #: Committed models, one of each kind an export must handle: (env id, model).
 MODELS = [
@@ -56,13 +56,6 @@ def _played(env_id: str, model: SB3Policy) -> tuple[np.ndarray, np.ndarray, np.n
     return np.array(observations), np.array(masks), np.array(actions)
 
 
-def _torch_logits(model: SB3Policy, observations: np.ndarray) -> np.ndarray:
-    net = model.model.policy
-    with torch.inference_mode():
-        features = net.extract_features(torch.as_tensor(observations), net.features_extractor)
-        return net.action_net(net.mlp_extractor.forward_actor(features)).numpy()
-
-
 @pytest.mark.parametrize(("env_id", "path"), MODELS, ids=[m for _, m in MODELS])
 def test_the_exported_actor_decides_as_the_model(env_id, path, tmp_path):
     env = gym.make(env_id)
@@ -76,7 +69,7 @@ def test_the_exported_actor_decides_as_the_model(env_id, path, tmp_path):
     for i in range(len(observations)):  # one at a time, as a controller asks
         assert actor.decide(observations[i], masks[i] if actor.maskable else None) == actions[i]
     # The logits are torch's up to float32 rounding of another order of operations.
-    logits, expected = actor.logits(observations), _torch_logits(model, observations)
+    logits, expected = actor.logits(observations), model_logits(model, observations)
     assert logits.dtype == np.float32
     np.testing.assert_allclose(logits, expected, rtol=0, atol=2e-5 * max(1.0, np.abs(
         expected).max()))
@@ -173,6 +166,10 @@ def test_files_that_are_not_exported_policies_are_named(tmp_path, cartesian):
     np.savez(partial, **{k: v for k, v in arrays.items() if k != "action_bias"})
     with pytest.raises(ValueError, match=r"partial\.npz: exported policy without action_bias"):
         ExportedPolicy.load(partial)
+    elu = tmp_path / "elu.npz"
+    np.savez(elu, **{**arrays, "activation": np.array("ELU")})
+    with pytest.raises(ValueError, match=r"elu\.npz: activation 'ELU'; this package reads"):
+        ExportedPolicy.load(elu)
     with pytest.raises(ValueError, match=r"\.npz file"):
         export_policy(SB3Policy.load(MODELS[3][1]).model, tmp_path / "actor.zip")
 
