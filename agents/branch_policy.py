@@ -6,7 +6,8 @@ choice is the same question asked K times ("how good is going to this candidate?
 this policy asks it once: for each branch k of the next waypoint it gathers that branch's
 own slice of the observation (its normalised configuration, validity, endpoint collision,
 travel and path collision from where the arm stands, and what it leads to: with the
-compact observation its least travel onwards; with the ladder observation and lookahead ≥
+compact observation its least travel onwards, along checked free paths over one move
+and, where the env shows it, several; with the ladder observation and lookahead ≥
 1 its travel to every candidate of the waypoint after, and that waypoint's validity and
 endpoint flags), appends the shared context (the current configuration and progress, and
 with the compact observation an order-free summary of each later slot: the share of
@@ -72,8 +73,9 @@ class BranchFeatures(BaseFeaturesExtractor):
         self.later = 0  # later slots summarised (compact observations)
         if self.compact:
             own.append(index["slot0/travel_out"].view(k, 1))
-            if "slot0/free_travel_out" in index:
-                own.append(index["slot0/free_travel_out"].view(k, 1))
+            for name in ("slot0/free_travel_out", "slot0/free_travel_onward"):
+                if name in index:
+                    own.append(index[name].view(k, 1))
             h = 1
             while f"slot{h}/present" in index:
                 shared.append(index[f"slot{h}/present"])

@@ -125,9 +125,20 @@ ENV_SPECS["IKBranch/KukaKR6Deburring-v0"] = {
     "max_joint_step": 0.5235987755982988,
     "allowed_contacts": [["tool_1", "part*"]],
 }
+#: Ids that see further along checked paths: the id before, whose observation shows per
+#: branch the least travel of this many onward moves along collision-free paths the env
+#: has checked (``onward_moves``; a branch whose every way on is blocked within them reads
+#: 1). Traps in a per-episode clutter close two or three waypoints ahead.
+ONWARD_SUCCESSORS: dict[str, tuple[str, int]] = {
+    "IKBranch/Anthropomorphic-v3": ("IKBranch/Anthropomorphic-v4", 3),
+}
+ENV_SPECS.update({new: {**copy.deepcopy(ENV_SPECS[old]), "onward_moves": moves}
+                  for old, (new, moves) in ONWARD_SUCCESSORS.items()})
 ENV_IDS: tuple[str, ...] = tuple(ENV_SPECS)
-#: The ids of the current generation, in ``ENV_IDS`` order.
-CURRENT_IDS: tuple[str, ...] = (*SUCCESSORS.values(), "IKBranch/KukaKR6Deburring-v0")
+#: The ids of the current generation, in ``ENV_IDS`` order of their lines.
+CURRENT_IDS: tuple[str, ...] = (
+    *(ONWARD_SUCCESSORS.get(env_id, (env_id,))[0] for env_id in SUCCESSORS.values()),
+    "IKBranch/KukaKR6Deburring-v0")
 
 for _env_id, _kwargs in ENV_SPECS.items():
     if _env_id not in gym.registry:
@@ -151,9 +162,10 @@ def warm_up() -> None:
 
     kinematics.warm_up()
     collision.warm_up()
-    # A per-episode clutter (the random chain), a fixed cell, an arm with hundreds of
-    # branches (factored travel summaries), and a vector env (a stack of scenes).
-    for env_id in ("IKBranch/Anthropomorphic-v3", "IKBranch/ToolTransfer-v2",
+    # A per-episode clutter (the random chain) seen several moves ahead, a fixed cell, an
+    # arm with hundreds of branches (factored travel summaries), and a vector env (a stack
+    # of scenes).
+    for env_id in ("IKBranch/Anthropomorphic-v4", "IKBranch/ToolTransfer-v2",
                    "IKBranch/UR5e-v1"):
         env = gym.make(env_id, n_waypoints=2)
         env.reset(seed=0)
@@ -169,4 +181,5 @@ def warm_up() -> None:
     vec.close()
 
 
-__all__ = ["CURRENT_IDS", "ENV_IDS", "ENV_SPECS", "SUCCESSORS", "warm_up"]
+__all__ = ["CURRENT_IDS", "ENV_IDS", "ENV_SPECS", "ONWARD_SUCCESSORS", "SUCCESSORS",
+           "warm_up"]

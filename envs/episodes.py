@@ -7,7 +7,8 @@ handles every row it is given at once:
 - :meth:`EpisodeBatch.begin` — a row takes a new task: its ladder (candidates, validity,
   endpoint hits) and observation templates, the arm at the task's start;
 - :meth:`EpisodeBatch.survey` — for rows in a new state, the moves into their next
-  waypoint, their prices, the least free travel onward and the observations;
+  waypoint, their prices, the least free travel onward (of one move, and of several
+  where the layout shows it) and the observations;
 - :meth:`EpisodeBatch.advance` — rows take their actions: what :meth:`survey` priced for
   the chosen branches is paid, and the arm moves.
 
@@ -121,10 +122,11 @@ class EpisodeBatch:
         numbers = np.array([cost.travel_weight, cost.time_weight, pricer.collision_penalty,
                             pricer.invalid_penalty, float(pricer.terminate_on_collision),
                             pricer.max_transition_cost, pricer.travel_scale,
-                            pricer.checker.resolution])
+                            pricer.checker.resolution, builder.onward_moves])
         onward = layout.get("slot0/free_travel_out", (-1, -1))
+        ahead = layout.get("slot0/free_travel_onward", (-1, -1))
         slices = np.array([*layout["q"], *layout["slot0/travel"],
-                           *layout["slot0/path_collision"], *onward], dtype=np.int64)
+                           *layout["slot0/path_collision"], *onward, *ahead], dtype=np.int64)
         self._episodes = stepping.make_episodes(
             self.q, self.index, self.collided, self.invalid, self.candidates, self.valid,
             self.endpoint, self.free_start, self.lengths, self.templates, self.values,

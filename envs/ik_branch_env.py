@@ -171,7 +171,10 @@ class IKBranchEnv(gym.Env):
       branches): per branch of every slot ``travel_out``, the least travel to a free
       branch of the waypoint after; slots h ≥ 1 ``travel_in``, the least travel from a
       free branch of the waypoint before; slot 0 ``free_travel_out``, the least travel
-      onward along a path the env has checked to be collision-free (1 where none is).
+      onward along a path the env has checked to be collision-free (1 where none is), and
+      with ``onward_moves`` n ≥ 2 ``free_travel_onward``, the least travel of the next n
+      moves along checked collision-free paths (over n × the scale; 1 where none is, so a
+      branch whose every way on is blocked within n moves reads 1).
     - ``observation="ladder"`` (the v0/v1 ids; O(K²)): slots h ≥ 1 carry ``travel``
       (K × K) from every candidate of the waypoint before.
     - Beyond slot 0's paths and onward paths the lookahead shows endpoint collisions only;
@@ -245,6 +248,7 @@ class IKBranchEnv(gym.Env):
     scene_seeds           None                    [lo, hi) of those (None: the training range)
     arm_params            None                    dict of arm parameters (``make_arm``)
     observation           "compact"               "compact" (O(K)) or "ladder" (O(K²), v0/v1)
+    onward_moves          1                       moves of slot 0's checked free travel onward
     task_file             None                    ``task="file"``: a waypoint file (CSV/JSON)
     task_start            None                    its start q (None: free first branch)
     task_points_abc       None                    four-point files: a, b, c (mm)
@@ -362,6 +366,7 @@ class IKBranchEnv(gym.Env):
         scene_seeds: list[int] | None = None,
         arm_params: dict[str, Any] | None = None,
         observation: str = "compact",
+        onward_moves: int = 1,
         task_file: str | None = None,
         task_start: list[float] | None = None,
         task_points_abc: list[float] | None = None,
@@ -430,7 +435,8 @@ class IKBranchEnv(gym.Env):
             shoulder_margin=shoulder_margin,
         )
         self._observations = ObservationBuilder(
-            self.arm, self.lookahead, self.pricer.travel_scale, observation
+            self.arm, self.lookahead, self.pricer.travel_scale, observation,
+            _integer(onward_moves, "onward_moves", 1),
         )
         self.observation_layout = self._observations.layout
         self.observation_space = spaces.Box(

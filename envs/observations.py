@@ -13,9 +13,13 @@ limits and travel to [0, 1] by the largest possible travel:
     ``path_collision`` (K, along the path there) and ``free_travel_out`` (K: per branch,
     the least travel onward to the waypoint after along a path that is collision-free,
     checked; 1 where none is, at the last waypoint, and for branches whose own path from
-    the current configuration collides); slots h ≥ 1 also ``travel_in`` (K: per branch,
-    the least travel from a free branch of the waypoint before). Travel of and to invalid
-    branches is 1.
+    the current configuration collides); with ``onward_moves`` n ≥ 2 slot 0 also
+    ``free_travel_onward`` (K: per branch, the least travel of the next n moves — fewer
+    where the task ends sooner — along paths checked collision-free, each ending in a free
+    configuration, over n × the scale; 1 where none is, at the last waypoint, and for
+    branches whose own path collides: a branch from which every way on is blocked within n
+    moves reads 1); slots h ≥ 1 also ``travel_in`` (K: per branch, the least travel from a
+    free branch of the waypoint before). Travel of and to invalid branches is 1.
 ``"ladder"`` (size O(K²): the v0/v1 ids)
     As compact without ``travel_out`` and ``travel_in``; instead slots h ≥ 1 carry
     ``travel`` (K × K) from every candidate of the waypoint before.
@@ -23,7 +27,8 @@ limits and travel to [0, 1] by the largest possible travel:
 Everything a task fixes is assembled once per task (:meth:`ObservationBuilder.templates`);
 each step fills in the configuration and slot 0's travel, path collisions and (compact)
 onward free travel, for a batch of episodes at once (``envs.episodes``). The paths behind
-``path_collision`` and ``free_travel_out`` are checked by the env, so a policy's decision
+``path_collision``, ``free_travel_out`` and ``free_travel_onward`` are checked by the env,
+so a policy's decision
 time does not include them; a planner's (``receding_dp``) includes the checks it makes
 itself.
 """
@@ -205,10 +210,15 @@ class ObservationBuilder:
     ``kind``: one of ``OBSERVATIONS``)."""
 
     def __init__(self, arm: Arm, lookahead: int, travel_scale: float,
-                 kind: str = "compact") -> None:
+                 kind: str = "compact", onward_moves: int = 1) -> None:
         if kind not in OBSERVATIONS:
             raise ValueError(f"observation must be one of {', '.join(OBSERVATIONS)}, got {kind!r}")
+        if onward_moves > 1 and kind != "compact":
+            raise ValueError(f"onward_moves={onward_moves} needs observation='compact' (the "
+                             f"{kind} layout shows no onward free travel)")
         self.arm, self.lookahead, self.travel_scale, self.kind = arm, lookahead, travel_scale, kind
+        #: Moves the onward free travel of slot 0 covers (``free_travel_onward`` from 2).
+        self.onward_moves = onward_moves
         lower, upper = arm.joint_limits[:, 0], arm.joint_limits[:, 1]
         self._centre, self._half_range = (upper + lower) / 2, (upper - lower) / 2
         #: An arm with turn branches: its branch factors (closed-form index per branch,
@@ -223,11 +233,6 @@ class ObservationBuilder:
         #: name -> (start, stop) of each slice of the observation vector.
         self.layout = self._layout()
         self.size = max(stop for _, stop in self.layout.values())
-        self._q = slice(*self.layout["q"])
-        self._travel0 = slice(*self.layout["slot0/travel"])
-        self._path0 = slice(*self.layout["slot0/path_collision"])
-        onward = self.layout.get("slot0/free_travel_out")
-        self._onward0 = None if onward is None else slice(*onward)
         #: (candidates, valid, endpoint_collision) bytes of a task -> its templates
         #: (read-only), cleared when it would grow past ``TEMPLATE_CACHE_BYTES``; only
         #: tasks seen before (``_sighted``: hashes of keys) are kept, so that tasks which
@@ -247,6 +252,8 @@ class ObservationBuilder:
                 sizes += [("slot0/travel", k), ("slot0/path_collision", k),
                           ("slot0/free_travel_out", k)] if h == 0 else [
                     (f"slot{h}/travel_in", k)]
+                if h == 0 and self.onward_moves > 1:
+                    sizes += [("slot0/free_travel_onward", k)]
                 continue
             sizes += [("slot0/travel", k), ("slot0/path_collision", k)] if h == 0 else [
                 (f"slot{h}/travel", k * k)]
@@ -262,8 +269,8 @@ class ObservationBuilder:
     def templates(self, ladder: TaskMoves) -> np.ndarray:
         """Everything of the observation a task fixes, (N + 1, size) read-only: row i is
         the observation at ``index == i`` (i = 0 … N) but for ``q`` and slot 0's
-        ``travel``, ``path_collision`` and ``free_travel_out``, which :meth:`observe_rows`
-        and :meth:`fill_slot0` fill in. They depend on the task's candidates, their
+        ``travel``, ``path_collision`` and onward free travel, which each step fills in
+        (``envs.stepping``). They depend on the task's candidates, their
         validity and endpoint hits only, so a task met again (a finite pose set) takes
         them from the cache."""
         key = (ladder.candidates.tobytes(), ladder.valid.tobytes(),
@@ -352,33 +359,3 @@ class ObservationBuilder:
             templates[:rows, slice(*self.layout[f"slot{h}/travel_out"])] = leaving[h:]
             if h:
                 templates[:rows, slice(*self.layout[f"slot{h}/travel_in"])] = arriving[h:]
-
-    @property
-    def wants_onward(self) -> bool:
-        """The layout has ``slot0/free_travel_out`` (the caller computes it per step)."""
-        return self._onward0 is not None
-
-    def observe_rows(self, templates: np.ndarray, index: np.ndarray,
-                     q: np.ndarray) -> np.ndarray:
-        """(B, size) float32: per row b its task's template at ``index[b]`` with the
-        configuration ``q[b]``: the whole observation once an episode is over; otherwise
-        :meth:`fill_slot0` completes it. ``templates`` (B, N + 1, size)."""
-        obs = templates[np.arange(len(index)), index]
-        # np.clip's values, without its dispatch.
-        obs[:, self._q] = np.minimum(np.maximum(self.normalise(q), -1.0), 1.0)
-        return obs
-
-    def fill_slot0(self, obs: np.ndarray, rows: np.ndarray, valid: np.ndarray,
-                   travel: np.ndarray, collision: np.ndarray,
-                   onward: np.ndarray | None) -> None:
-        """Slot 0 of ``obs[rows]``: per branch of the next waypoint (``valid`` (R, K)) the
-        travel of the move there (``travel``, what ``step`` pays), whether its path
-        collides, and (compact layout) ``onward``, the least travel onward along a free
-        path (``envs.moves.least_free_travel``; inf where none)."""
-        scaled = travel / self.travel_scale  # invalid branches: 0
-        obs[rows, self._travel0] = np.where(valid, np.minimum(scaled, 1.0), 1.0)
-        obs[rows, self._path0] = collision
-        if self._onward0 is not None:
-            if onward is None:
-                raise ValueError("the compact observation needs the onward free travel")
-            obs[rows, self._onward0] = np.minimum(onward / self.travel_scale, 1.0)

@@ -6,9 +6,12 @@ One call per stage for every row given, with no Python between the parts of a st
   path from where the arm stands (looked up in the path memo, the rest checked in one
   call of the collision filter's kernel, each path in its row's scene), every price
   (``envs.moves._price``), the least travel onward along a free path (cheapest first,
-  one kernel call per round, as ``envs.moves.least_free_travel`` defines it) and the
-  observation (the template of the task with the configuration and slot 0 filled in, as
-  ``envs.observations.ObservationBuilder`` defines it);
+  one kernel call per round, as ``envs.moves.least_free_travel`` defines it), where the
+  layout asks for it the least travel of several onward moves along free paths (the same
+  search, layer by layer from the farthest waypoint back, each target carrying the least
+  travel onward from it) and the observation (the template of the task with the
+  configuration and slot 0 filled in, as ``envs.observations.ObservationBuilder``
+  defines it);
 - :func:`advance` — rows take their actions: what :func:`survey` priced is paid, the arm
   moves.
 
@@ -40,10 +43,11 @@ _FLAGS = np.array([False, True])
 MEMO_SLOTS = 2**16
 #: Indices into ``Episodes.numbers``.
 TRAVEL_WEIGHT, TIME_WEIGHT, COLLISION_PENALTY, INVALID_PENALTY, TERMINATE, MAX_COST = range(6)
-TRAVEL_SCALE, RESOLUTION = 6, 7
+TRAVEL_SCALE, RESOLUTION, ONWARD_MOVES = 6, 7, 8
 #: Indices into ``Episodes.layout``: start and stop of the observation's slices (q, slot
-#: 0's travel, path collisions and onward free travel; −1 where the layout has none).
-Q0, Q1, TRAVEL0, TRAVEL1, PATH0, PATH1, ONWARD0, ONWARD1 = range(8)
+#: 0's travel, path collisions, onward free travel and free travel of ``ONWARD_MOVES``
+#: moves; −1 where the layout has none).
+Q0, Q1, TRAVEL0, TRAVEL1, PATH0, PATH1, ONWARD0, ONWARD1, AHEAD0, AHEAD1 = range(10)
 
 FIELDS = ("q", "index", "collided", "invalid", "candidates", "valid", "endpoint",
           "free_start", "lengths", "templates", "values", "flags", "observation", "weights",
@@ -217,9 +221,10 @@ def survey(ep, bound, rows):
     if live_count:
         _price_rows(ep, live, collision)
     onward = np.full(collision.shape, np.inf)
+    ahead = np.full(collision.shape, np.inf)
     if ep.layout[ONWARD0] >= 0:
-        _onward(ep, bound, live, collision, onward)
-    _observe(ep, rows, live, collision, onward)
+        _onward(ep, bound, live, collision, onward, ahead)
+    _observe(ep, rows, live, collision, onward, ahead)
 
 
 @njit
@@ -294,17 +299,76 @@ def _price_rows(ep, live, collision):
 
 
 @njit
-def _onward(ep, bound, live, collision, onward):
+def _onward(ep, bound, live, collision, onward, ahead):
     """``onward[line]`` (K): per branch of a live row's next waypoint reachable without a
     hit, the least travel onward along a free path (+inf where none, and at the last
-    waypoint): ``envs.moves.least_free_travel``, every row's rounds together."""
-    inner, rows, here, there, pending, targets = _onward_lines(ep, live, collision)
+    waypoint): ``envs.moves.least_free_travel``, every row's rounds together. Where the
+    layout has the free travel of ``ONWARD_MOVES`` = n ≥ 2 moves, ``ahead[line]`` (K):
+    the least travel of the next n moves (fewer where the task ends sooner) along free
+    paths, each ending in a free configuration."""
+    inner, rows, pending = _onward_lines(ep, live, collision)
     count, k = pending.shape
     if not count:
         return
+    waypoints = ep.index[rows]
+    out = _least_onward(ep, bound, rows, waypoints, pending.copy(), np.zeros((count, k)))
+    for m in range(count):
+        onward[inner[m]] = out[m]
+    if ep.layout[AHEAD0] < 0:
+        return
+    # Backwards from the farthest move: the cost of a branch of waypoint w + j is the
+    # least travel of the moves from it to waypoint w + n (0 at w + n and at the task's
+    # last waypoint), +inf where no free path goes on.
+    costs = np.zeros((count, k))
+    for j in range(int(ep.numbers[ONWARD_MOVES]) - 1, 0, -1):
+        lines = np.empty(count, dtype=np.int64)
+        deep = 0
+        for m in range(count):
+            if waypoints[m] + j + 1 < ep.lengths[rows[m]]:
+                lines[deep] = m
+                deep += 1
+        if not deep:
+            continue
+        lines = lines[:deep]
+        asking = np.empty((deep, k), dtype=np.bool_)
+        for i in range(deep):
+            r, w = rows[lines[i]], waypoints[lines[i]] + j
+            for c in range(k):
+                asking[i, c] = ep.valid[r, w, c] and not ep.endpoint[r, w, c]
+        layer = _least_onward(ep, bound, rows[lines], waypoints[lines] + j, asking,
+                              costs[lines])
+        for i in range(deep):
+            costs[lines[i]] = layer[i]
+    out = _least_onward(ep, bound, rows, waypoints, pending, costs)
+    for m in range(count):
+        ahead[inner[m]] = out[m]
+
+
+@njit
+def _least_onward(ep, bound, rows, waypoints, pending, costs):
+    """(M, K): per line m (row ``rows[m]``, whose waypoint ``waypoints[m]`` has one after)
+    and branch a where ``pending[m, a]``, the least travel from a to a branch b of the
+    waypoint after plus ``costs[m, b]``, over the b that are valid, whose configuration is
+    free and whose cost is finite, along a free path: cheapest first, one kernel call per
+    round for every line (``envs.moves.least_free_travel``); +inf where there is none.
+    ``pending`` is consumed."""
+    count, k = pending.shape
+    dof = ep.q.shape[1]
+    here, there = np.empty((count, k, dof)), np.empty((count, k, dof))
+    targets = np.empty((count, k), dtype=np.bool_)
+    for m in range(count):
+        r, w = rows[m], waypoints[m]
+        here[m], there[m] = ep.candidates[r, w], ep.candidates[r, w + 1]
+        for b in range(k):
+            targets[m, b] = (ep.valid[r, w + 1, b] and not ep.endpoint[r, w + 1, b]
+                             and costs[m, b] < np.inf)
     travel = np.empty((count, k, k))
     _onward_travel(here, there, pending, targets, ep.weights, travel)
-    _block_onward(ep, rows, here, there, travel, pending)
+    for m in range(count):
+        for a in range(k):
+            for b in range(k):
+                travel[m, a, b] += costs[m, b]
+    _block_onward(ep, rows, waypoints, here, there, travel, pending)
     last = np.full((count, k), -1, dtype=np.int64)
     out = np.full((count, k), np.inf)
     while True:
@@ -324,26 +388,25 @@ def _onward(ep, bound, live, collision, onward):
             break
         lines, branches, columns = lines[:asked], branches[:asked], columns[:asked]
         owners = np.empty(asked, dtype=np.int64)
-        starts, ends = np.empty((asked, here.shape[2])), np.empty((asked, here.shape[2]))
+        starts, ends = np.empty((asked, dof)), np.empty((asked, dof))
         for i in range(asked):
             m, a = lines[i], branches[i]
             owners[i] = rows[m]
             starts[i], ends[i] = here[m, a], there[m, columns[i]]
         hits = _paths_collide(ep, bound, owners, starts, ends)
         _take_or_try_next(lines, branches, columns, hits, travel, last, out, pending)
-    for m in range(count):
-        onward[inner[m]] = out[m]
+    return out
 
 
 @njit
-def _block_onward(ep, rows, here, there, travel, pending):
-    """Onward moves (branch a of the next waypoint → branch b of the one after) that would
-    reconfigure the arm inside a process segment are no moves (+inf travel); a branch left
-    with none onward asks no more."""
+def _block_onward(ep, rows, waypoints, here, there, travel, pending):
+    """Onward moves (branch a of waypoint ``waypoints[m]`` → branch b of the one after)
+    that would reconfigure the arm inside a process segment are no moves (+inf travel); a
+    branch left with none onward asks no more."""
     k = travel.shape[1]
     for m in range(len(rows)):
         r = rows[m]
-        w = ep.index[r] + 1
+        w = waypoints[m] + 1
         if not ep.inside[r, w]:
             continue
         for a in range(k):
@@ -361,10 +424,9 @@ def _block_onward(ep, rows, here, there, travel, pending):
 
 @njit
 def _onward_lines(ep, live, collision):
-    """The live rows with a waypoint after the next (their lines ``inner``, rows), their
-    next and following waypoints' candidates (``here``, ``there``), the branches asking
-    (valid, reached without a hit) and the targets (valid, their configuration free)."""
-    k, dof = ep.valid.shape[2], ep.q.shape[1]
+    """The live rows with a waypoint after the next (their lines ``inner``, rows) and the
+    branches of their next waypoint asking onward (valid, reached without a hit)."""
+    k = ep.valid.shape[2]
     inner = np.empty(len(live), dtype=np.int64)
     count = 0
     for line in range(len(live)):
@@ -372,20 +434,16 @@ def _onward_lines(ep, live, collision):
             inner[count] = line
             count += 1
     inner = inner[:count]
-    here, there = np.empty((count, k, dof)), np.empty((count, k, dof))
     pending = np.empty((count, k), dtype=np.bool_)
-    targets = np.empty((count, k), dtype=np.bool_)
     rows = np.empty(count, dtype=np.int64)
     for m in range(count):
         line = inner[m]
         r = live[line]
         w = ep.index[r]
         rows[m] = r
-        here[m], there[m] = ep.candidates[r, w], ep.candidates[r, w + 1]
         for b in range(k):
             pending[m, b] = _allowed(ep, r, w, b) and not collision[line, b]
-            targets[m, b] = ep.valid[r, w + 1, b] and not ep.endpoint[r, w + 1, b]
-    return inner, rows, here, there, pending, targets
+    return inner, rows, pending
 
 
 @njit
@@ -406,12 +464,14 @@ def _pending_rows(pending):
 
 
 @njit
-def _observe(ep, rows, live, collision, onward):
+def _observe(ep, rows, live, collision, onward, ahead):
     """The observations of ``rows``: each task's template at the row's waypoint, the
     configuration normalised (clipped to [−1, 1]), and for ``live`` rows slot 0's travel,
-    path collisions and (where the layout has it) onward free travel."""
+    path collisions and (where the layout has them) onward free travel, and the free
+    travel of ``ONWARD_MOVES`` moves over that many times the scale."""
     layout, obs = ep.layout, ep.observation
     scale = ep.numbers[TRAVEL_SCALE]
+    ahead_scale = scale * ep.numbers[ONWARD_MOVES]
     for r in rows:
         obs[r] = ep.templates[r, ep.index[r]]
         for j in range(layout[Q1] - layout[Q0]):
@@ -426,6 +486,8 @@ def _observe(ep, rows, live, collision, onward):
             obs[r, layout[PATH0] + b] = 1.0 if collision[line, b] else 0.0
             if layout[ONWARD0] >= 0:
                 obs[r, layout[ONWARD0] + b] = min(onward[line, b] / scale, 1.0)
+            if layout[AHEAD0] >= 0:
+                obs[r, layout[AHEAD0] + b] = min(ahead[line, b] / ahead_scale, 1.0)
 
 
 # --------------------------------------------------------------------------- advance

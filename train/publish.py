@@ -54,7 +54,8 @@ README_END = "<!-- /results -->"
 PAPER_RULE, RECEDING_DP = PaperRule.name, RecedingDP.name
 #: Ids whose goal is success ≥ 99 % and an IQM gap ≤ 2 % on held-out scenes.
 HEADLINE_GOALS = ("IKBranch/ToolTransfer-v1", "IKBranch/Anthropomorphic-v2",
-                  "IKBranch/ToolTransfer-v2", "IKBranch/Anthropomorphic-v3")
+                  "IKBranch/ToolTransfer-v2", "IKBranch/Anthropomorphic-v3",
+                  "IKBranch/Anthropomorphic-v4")
 
 
 def _interval(value: Sequence[float] | None, fmt: str = "{:.3f}") -> str:

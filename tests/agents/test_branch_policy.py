@@ -31,7 +31,8 @@ def _permuted(obs: np.ndarray, layout: dict, k: int, dof: int, order: np.ndarray
     for name, width in (("slot0/candidates", dof), ("slot0/valid", 1),
                         ("slot0/endpoint_collision", 1), ("slot0/travel", 1),
                         ("slot0/path_collision", 1), ("slot1/travel", k),
-                        ("slot0/travel_out", 1), ("slot0/free_travel_out", 1)):
+                        ("slot0/travel_out", 1), ("slot0/free_travel_out", 1),
+                        ("slot0/free_travel_onward", 1)):
         if name not in layout:
             continue
         where, width = block(name, width)
@@ -39,9 +40,11 @@ def _permuted(obs: np.ndarray, layout: dict, k: int, dof: int, order: np.ndarray
     return out
 
 
-@pytest.mark.parametrize("observation", ["ladder", "compact"])
-def test_branch_scores_follow_the_branches_not_their_order(observation):
-    env = gym.make("IKBranch/ToolTransfer-v0", observation=observation)
+@pytest.mark.parametrize(("observation", "onward_moves"),
+                         [("ladder", 1), ("compact", 1), ("compact", 3)])
+def test_branch_scores_follow_the_branches_not_their_order(observation, onward_moves):
+    env = gym.make("IKBranch/ToolTransfer-v0", observation=observation,
+                   onward_moves=onward_moves)
     obs, _ = env.reset(seed=3)
     base = env.unwrapped
     k, dof = base.arm.n_branches, base.arm.dof
@@ -56,6 +59,10 @@ def test_branch_scores_follow_the_branches_not_their_order(observation):
     np.testing.assert_allclose(permuted[0, :k], plain[0, :k][order], atol=1e-6)
     np.testing.assert_allclose(permuted[0, k:], plain[0, k:], atol=1e-6)  # pooled: invariant
     assert plain[0, :k].std() > 0  # the branches really get different scores
+    onward = base.observation_layout.get("slot0/free_travel_onward")
+    assert (onward is not None) == (onward_moves > 1)
+    if onward is not None:  # each branch reads its own several-move onward travel
+        np.testing.assert_array_equal(features.own[:, -1].numpy(), np.arange(*onward))
 
 
 @pytest.mark.parametrize("observation", ["ladder", "compact"])
