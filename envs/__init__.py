@@ -128,9 +128,12 @@ ENV_SPECS["IKBranch/KukaKR6Deburring-v0"] = {
 #: Ids that see further along checked paths: the id before, whose observation shows per
 #: branch the least travel of this many onward moves along collision-free paths the env
 #: has checked (``onward_moves``; a branch whose every way on is blocked within them reads
-#: 1). Traps in a per-episode clutter close two or three waypoints ahead.
+#: 1): a trap in a per-episode clutter may close two or three waypoints ahead, and on an
+#: arm with hundreds of branches the cheapest next move is often not where the cheapest
+#: way on starts (docs/training.md).
 ONWARD_SUCCESSORS: dict[str, tuple[str, int]] = {
     "IKBranch/Anthropomorphic-v3": ("IKBranch/Anthropomorphic-v4", 3),
+    "IKBranch/UR5e-v1": ("IKBranch/UR5e-v2", 2),
 }
 ENV_SPECS.update({new: {**copy.deepcopy(ENV_SPECS[old]), "onward_moves": moves}
                   for old, (new, moves) in ONWARD_SUCCESSORS.items()})
@@ -166,7 +169,7 @@ def warm_up() -> None:
     # arm with hundreds of branches (factored travel summaries), and a vector env (a stack
     # of scenes).
     for env_id in ("IKBranch/Anthropomorphic-v4", "IKBranch/ToolTransfer-v2",
-                   "IKBranch/UR5e-v1"):
+                   "IKBranch/UR5e-v2"):
         env = gym.make(env_id, n_waypoints=2)
         env.reset(seed=0)
         unwrapped = env.unwrapped

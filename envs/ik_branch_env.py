@@ -271,6 +271,13 @@ class IKBranchEnv(gym.Env):
     ===================== ======================= ===========================================
 
     ## Version history
+    - Anthropomorphic **-v4**, UR5e **-v2** (2026-12-04): the observation also shows, per
+      branch of the next waypoint, the least travel of the next three (Anthropomorphic) or
+      two (UR5e) moves along paths the env has checked to be collision-free
+      (``onward_moves``, ``free_travel_onward``): a branch from which every way on is
+      blocked within them reads 1. Tasks, scenes, rewards and collision verdicts are those
+      of Anthropomorphic-v3 and UR5e-v1, which stay registered for their published models.
+      ``onward_moves`` is a new argument for every id (1, as before, by default).
     - KukaKR6Deburring **-v0** (2026-12-04): a process job on a real arm. A KR 6 R700
       deburrs the rim of a part clamped in a fixture (scene ``deburring_cell``, task
       ``deburring``): one pass of 12 rim points an episode, its chamfer angle drawn, the

@@ -318,9 +318,10 @@ def _onward(ep, bound, live, collision, onward, ahead):
         return
     # Backwards from the farthest move: the cost of a branch of waypoint w + j is the
     # least travel of the moves from it to waypoint w + n (0 at w + n and at the task's
-    # last waypoint), +inf where no free path goes on.
+    # last waypoint), +inf where no free path goes on. Every branch of w + j ≥ w + 2;
+    # those of w + 1 only as the last two moves' search asks for them.
     costs = np.zeros((count, k))
-    for j in range(int(ep.numbers[ONWARD_MOVES]) - 1, 0, -1):
+    for j in range(int(ep.numbers[ONWARD_MOVES]) - 1, 1, -1):
         lines = np.empty(count, dtype=np.int64)
         deep = 0
         for m in range(count):
@@ -339,9 +340,177 @@ def _onward(ep, bound, live, collision, onward, ahead):
                               costs[lines])
         for i in range(deep):
             costs[lines[i]] = layer[i]
-    out = _least_onward(ep, bound, rows, waypoints, pending, costs)
+    out = _least_two_moves(ep, bound, rows, waypoints, pending, costs)
     for m in range(count):
         ahead[inner[m]] = out[m]
+
+
+@njit
+def _least_two_moves(ep, bound, rows, waypoints, pending, costs):
+    """:func:`_least_onward` over two moves, the same values: per line m and branch a of
+    waypoint w = ``waypoints[m]`` where ``pending[m, a]``, the least travel(a → c) +
+    travel(c → d) + ``costs[m, d]`` along free paths (c a free branch of w + 1, d one of
+    w + 2 with a finite cost; c alone where w + 1 is the task's last waypoint).
+
+    The cost of c (its least way on) is found only when a search asks for it: each branch
+    a takes its cheapest untried c by travel(a → c) + the cost of c where known, else its
+    lower bound, the least travel(c → d) + ``costs[m, d]`` over every d regardless of
+    paths. A pick whose cost is a bound is costed first and picked again; a costed pick
+    is checked. Bounds never exceed costs, so the first free costed pick is the cheapest
+    (ties: the lower index, as the eager search takes them)."""
+    lines, mid, far, second, asking = _second_moves(ep, rows, waypoints, costs)
+    estimate, known, at = _cost_bounds(ep, rows, waypoints, lines, second, asking)
+    here, there, first = _first_moves(ep, rows, waypoints, estimate, pending)
+    count, k = pending.shape
+    tried = np.zeros((count, k, k), dtype=np.bool_)
+    out = np.full((count, k), np.inf)
+    while True:
+        asked_lines, asked_branches = _pending_rows(pending)
+        if not len(asked_lines):
+            break
+        columns = np.full(len(asked_lines), -1, dtype=np.int64)
+        need = np.zeros((len(lines), k), dtype=np.bool_)
+        if _pick(first, estimate, known, at, tried, asked_lines, asked_branches, pending,
+                 columns, need):  # cost the bounded picks, then pick again
+            found = _search(ep, bound, rows[lines], mid, far, second, need.copy())
+            for i in range(len(lines)):
+                for c in range(k):
+                    if need[i, c]:
+                        estimate[lines[i], c], known[lines[i], c] = found[i, c], True
+            continue
+        picked = columns >= 0
+        asked_lines, asked_branches = asked_lines[picked], asked_branches[picked]
+        columns = columns[picked]
+        starts = _rows_of(here, asked_lines, asked_branches)
+        hits = _paths_collide(ep, bound, rows[asked_lines], starts,
+                              _rows_of(there, asked_lines, columns))
+        for i in range(len(columns)):
+            m, a, c = asked_lines[i], asked_branches[i], columns[i]
+            if hits[i]:
+                tried[m, a, c] = True
+            else:
+                out[m, a] = first[m, a, c] + estimate[m, c]
+                pending[m, a] = False
+    return out
+
+
+@njit
+def _rows_of(configurations, lines, branches):
+    """(M, dof): ``configurations[lines[i], branches[i]]`` per i."""
+    out = np.empty((len(lines), configurations.shape[2]))
+    for i in range(len(lines)):
+        out[i] = configurations[lines[i], branches[i]]
+    return out
+
+
+@njit
+def _second_moves(ep, rows, waypoints, costs):
+    """The second moves of :func:`_least_two_moves`, for the lines whose task has
+    waypoint w + 2 (``lines``): both ends (``mid``, ``far``), their travel plus the cost
+    of the end (``second``, +inf where no move) and the free branches of w + 1 with a
+    move left (``asking``)."""
+    count, k = costs.shape
+    dof = ep.q.shape[1]
+    lines = np.empty(count, dtype=np.int64)
+    deep = 0
+    for m in range(count):
+        if waypoints[m] + 2 < ep.lengths[rows[m]]:
+            lines[deep] = m
+            deep += 1
+    lines = lines[:deep]
+    mid, far = np.empty((deep, k, dof)), np.empty((deep, k, dof))
+    asking = np.empty((deep, k), dtype=np.bool_)
+    targets = np.empty((deep, k), dtype=np.bool_)
+    for i in range(deep):
+        m = lines[i]
+        r, w = rows[m], waypoints[m] + 1
+        mid[i], far[i] = ep.candidates[r, w], ep.candidates[r, w + 1]
+        for c in range(k):
+            asking[i, c] = ep.valid[r, w, c] and not ep.endpoint[r, w, c]
+            targets[i, c] = (ep.valid[r, w + 1, c] and not ep.endpoint[r, w + 1, c]
+                             and costs[m, c] < np.inf)
+    second = np.empty((deep, k, k))
+    _onward_travel(mid, far, asking, targets, ep.weights, second)
+    for i in range(deep):
+        for c in range(k):
+            for d in range(k):
+                second[i, c, d] += costs[lines[i], d]
+    _block_onward(ep, rows[lines], waypoints[lines] + 1, mid, far, second, asking)
+    return lines, mid, far, second, asking
+
+
+@njit
+def _cost_bounds(ep, rows, waypoints, lines, second, asking):
+    """Per line and branch c of w + 1: what is known of its cost (``estimate``; ``known``
+    where it is the cost): 0 where w + 1 is the task's last waypoint, else the least of
+    its second moves regardless of paths (+inf where it has none); ``at``: each line's
+    index in ``lines`` (−1: none)."""
+    count, k = len(rows), ep.valid.shape[2]
+    estimate = np.full((count, k), np.inf)
+    known = np.zeros((count, k), dtype=np.bool_)
+    at = np.full(count, -1, dtype=np.int64)
+    for i in range(len(lines)):
+        at[lines[i]] = i
+        for c in range(k):
+            if asking[i, c]:
+                least = np.inf
+                for d in range(k):
+                    least = min(least, second[i, c, d])
+                estimate[lines[i], c] = least
+    for m in range(count):
+        if at[m] < 0:
+            r, w = rows[m], waypoints[m] + 1
+            for c in range(k):
+                if ep.valid[r, w, c] and not ep.endpoint[r, w, c]:
+                    estimate[m, c], known[m, c] = 0.0, True
+    return estimate, known, at
+
+
+@njit
+def _first_moves(ep, rows, waypoints, estimate, pending):
+    """The first moves of :func:`_least_two_moves`: both ends and their travel (+inf where
+    no move: into a branch without a way on, reconfiguring inside a segment); branches
+    left with none ask no more."""
+    count, k = pending.shape
+    dof = ep.q.shape[1]
+    here, there = np.empty((count, k, dof)), np.empty((count, k, dof))
+    targets = np.empty((count, k), dtype=np.bool_)
+    for m in range(count):
+        r, w = rows[m], waypoints[m]
+        here[m], there[m] = ep.candidates[r, w], ep.candidates[r, w + 1]
+        for c in range(k):
+            targets[m, c] = estimate[m, c] < np.inf
+    first = np.empty((count, k, k))
+    _onward_travel(here, there, pending, targets, ep.weights, first)
+    _block_onward(ep, rows, waypoints, here, there, first, pending)
+    return here, there, first
+
+
+@njit
+def _pick(first, estimate, known, at, tried, lines, branches, pending, columns, need):
+    """One round's picks of :func:`_least_two_moves`: per asking (``lines[i]``,
+    ``branches[i]``) its cheapest untried c (ties: the lower index) into ``columns[i]``
+    where c's cost is known; where it is a bound, ``need[at[line], c]`` instead (True is
+    returned) and ``columns[i]`` stays −1; none left: the branch asks no more."""
+    costing = False
+    for i in range(len(lines)):
+        m, a = lines[i], branches[i]
+        best, pick = np.inf, -1
+        for c in range(first.shape[2]):
+            travel = first[m, a, c]
+            if not travel < np.inf or tried[m, a, c]:
+                continue
+            value = travel + estimate[m, c]
+            if value < best:
+                best, pick = value, c
+        if pick < 0:  # no way on left: +inf, done
+            pending[m, a] = False
+        elif not known[m, pick]:
+            need[at[m], pick] = True
+            costing = True
+        else:
+            columns[i] = pick
+    return costing
 
 
 @njit
@@ -369,6 +538,17 @@ def _least_onward(ep, bound, rows, waypoints, pending, costs):
             for b in range(k):
                 travel[m, a, b] += costs[m, b]
     _block_onward(ep, rows, waypoints, here, there, travel, pending)
+    return _search(ep, bound, rows, here, there, travel, pending)
+
+
+@njit
+def _search(ep, bound, rows, here, there, travel, pending):
+    """(M, K): per line m (row ``rows[m]``) and branch a where ``pending[m, a]``, the
+    least ``travel[m, a, b]`` over the b whose path ``here[m, a]`` → ``there[m, b]`` is
+    free: cheapest first, one kernel call per round for every line; +inf where there is
+    none. ``pending`` is consumed."""
+    count, k = pending.shape
+    dof = here.shape[2]
     last = np.full((count, k), -1, dtype=np.int64)
     out = np.full((count, k), np.inf)
     while True:

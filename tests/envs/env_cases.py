@@ -69,4 +69,47 @@ def same_info(a: dict, b: dict) -> bool:
     return True
 
 
+def least_onward_travel(base, moves: int, paths_collide, continuity: bool = True) -> np.ndarray:
+    """(K,) by enumeration, per branch of the env's next waypoint: the least travel of the
+    next ``moves`` moves (fewer where the task ends sooner) along paths that
+    ``paths_collide(start, ends)`` calls free, each ending in a free configuration and none
+    reconfiguring the arm inside a process segment (``continuity=False``: those too); +inf
+    for branches outside the mask or
+    whose own path collides, for those with no such way on, and at the task's last
+    waypoint."""
+    ladder, i = base.ladder, base.index
+    n, k = ladder.n_waypoints, base.arm.n_branches
+    memo: dict[tuple[int, int, int], float] = {}
+
+    def onward(w: int, c: int, left: int) -> float:
+        if left == 0 or w + 1 >= n:
+            return 0.0
+        if (w, c, left) not in memo:
+            blocked = ladder.blocked(ladder.candidates[w], w + 1)[c] & continuity
+            ends = np.flatnonzero(ladder.valid[w + 1] & ~ladder.endpoint_collision[w + 1]
+                                  & ~blocked)
+            best = np.inf
+            if len(ends):
+                start, targets = ladder.candidates[w][c], ladder.candidates[w + 1][ends]
+                free = ~paths_collide(start, targets)
+                travel = base.cost.travel(start, targets)
+                for d, step, is_free in zip(ends, travel, free, strict=True):
+                    if is_free:
+                        best = min(best, step + onward(w + 1, int(d), left - 1))
+            memo[w, c, left] = best
+        return memo[w, c, left]
+
+    out = np.full(k, np.inf)
+    if i + 1 >= n:
+        return out
+    for a in np.flatnonzero(base.action_masks()):
+        if i == 0 and ladder.task.free_start:  # the arm starts in the branch it picks
+            hit = ladder.endpoint_collision[0, a]
+        else:
+            hit = paths_collide(base.q, ladder.candidates[i][a : a + 1])[0]
+        if not hit:
+            out[a] = onward(i, int(a), moves)
+    return out
+
+
 IDS = envs.ENV_IDS

@@ -110,15 +110,16 @@ CURRENT = {
     "IKBranch/DualPPRPRR-v2": "IKBranch/DualPPRPRR-v1",
     "IKBranch/RodMechanism-v3": "IKBranch/RodMechanism-v2",
     "IKBranch/KukaKR6-v1": "IKBranch/KukaKR6-v0",
-    "IKBranch/UR5e-v1": "IKBranch/UR5e-v0",
+    "IKBranch/UR5e-v2": "IKBranch/UR5e-v1",  # see ONWARD
     "IKBranch/IRB4600ToolTransfer-v1": "IKBranch/IRB4600ToolTransfer-v0",
     "IKBranch/IRB2600Screwing-v1": "IKBranch/IRB2600Screwing-v0",
     "IKBranch/KukaKR6Deburring-v0": None,  # a new job, no generation before
 }
 #: Ids of the current generation that see several moves ahead, and those moves; the id
 #: each succeeds is of the drawn generation, collided as drawn, and stays registered.
-ONWARD = {"IKBranch/Anthropomorphic-v4": 3}
-DRAWN_BEFORE = {"IKBranch/Anthropomorphic-v3": "IKBranch/Anthropomorphic-v2"}
+ONWARD = {"IKBranch/Anthropomorphic-v4": 3, "IKBranch/UR5e-v2": 2}
+DRAWN_BEFORE = {"IKBranch/Anthropomorphic-v3": "IKBranch/Anthropomorphic-v2",
+                "IKBranch/UR5e-v1": "IKBranch/UR5e-v0"}
 
 
 def test_the_deburring_job_is_the_kr6_on_its_cell_with_a_free_burr():

@@ -36,6 +36,7 @@ from ikbranch_gym.envs.process import (
 from ikbranch_gym.envs.tasks.waypoint_file import write_waypoints
 from ikbranch_gym.envs.vector_env import IKBranchVectorEnv
 from tests.agents.brute_force import brute_force
+from tests.envs.env_cases import least_onward_travel
 
 ARM = "kuka_kr6_r700"
 TURN = math.radians(25.0)
@@ -292,6 +293,30 @@ def test_the_vector_env_is_the_single_env_bit_for_bit(spin_file):
         step = native.step(actions)
         assert data_equivalence(step, sync.step(actions), exact=True)
         infos = step[4]
+
+
+def test_the_free_travel_several_moves_on_keeps_the_configuration(spin_file):
+    # Inside a segment only moves that keep the configuration and the step limit lead on:
+    # the observation equals enumeration with the ladder's own blocked moves at every
+    # step, and differs from enumeration without them somewhere.
+    env = _env(spin_file, max_joint_step=math.radians(40.0), task_segments=[UNWIND],
+               onward_moves=3)
+    layout, scale = env.observation_layout, env.pricer.travel_scale
+
+    def paths_collide(start, ends):
+        return env.pricer.paths_collide(np.broadcast_to(start, ends.shape), ends)
+
+    rng = np.random.default_rng(2)
+    obs, info = env.reset(seed=0)
+    differs, done = 0, False
+    while not done:
+        expected = least_onward_travel(env, 3, paths_collide)
+        np.testing.assert_array_equal(obs[slice(*layout["slot0/free_travel_onward"])],
+                                      np.minimum(expected / (3 * scale), 1.0).astype(np.float32))
+        free = least_onward_travel(env, 3, paths_collide, continuity=False)
+        differs += int((free != expected).sum())
+        obs, _, done, _, info = env.step(int(rng.choice(np.flatnonzero(info["action_mask"]))))
+    assert differs
 
 
 def test_continuity_needs_a_file_task_and_a_limit_below_half_a_turn(spin_file):
