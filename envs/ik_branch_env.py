@@ -224,7 +224,7 @@ class IKBranchEnv(gym.Env):
     branch.
 
     ## Arguments
-    ``gym.make("IKBranch/Anthropomorphic-v3", **kwargs)``; every argument is JSON-able.
+    ``gym.make("IKBranch/Anthropomorphic-v4", **kwargs)``; every argument is JSON-able.
 
     ===================== ======================= ===========================================
     argument              default                 meaning

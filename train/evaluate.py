@@ -119,7 +119,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         prog="python -m train.evaluate", description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("--env", required=True, help="env id, e.g. IKBranch/Anthropomorphic-v3")
+    parser.add_argument("--env", required=True, help="env id, e.g. IKBranch/Anthropomorphic-v4")
     parser.add_argument("--env-kwargs", type=json.loads, default={},
                         help='JSON dict of env arguments, e.g. \'{"n_waypoints": 12}\'')
     parser.add_argument("--policy", action="append", required=True, dest="policies",

@@ -52,10 +52,15 @@ README_BEGIN = "<!-- results: written by python -m train.aggregate --publish; do
 README_END = "<!-- /results -->"
 #: The learned policies' rivals in the tables and the goal checks (``train.aggregate.RIVALS``).
 PAPER_RULE, RECEDING_DP = PaperRule.name, RecedingDP.name
-#: Ids whose goal is success ≥ 99 % and an IQM gap ≤ 2 % on held-out scenes.
-HEADLINE_GOALS = ("IKBranch/ToolTransfer-v1", "IKBranch/Anthropomorphic-v2",
-                  "IKBranch/ToolTransfer-v2", "IKBranch/Anthropomorphic-v3",
-                  "IKBranch/Anthropomorphic-v4")
+#: Ids whose goal is success ≥ 99 % on held-out scenes and an IQM gap at most this: 2 %
+#: on the milling cell and the first random-clutter generations, 1 % where a real arm's
+#: or the current anthropomorphic arm's policies are to sit at the optimum.
+HEADLINE_GOALS: dict[str, float] = {
+    "IKBranch/ToolTransfer-v1": 0.02, "IKBranch/Anthropomorphic-v2": 0.02,
+    "IKBranch/ToolTransfer-v2": 0.02, "IKBranch/Anthropomorphic-v3": 0.01,
+    "IKBranch/Anthropomorphic-v4": 0.01, "IKBranch/KukaKR6-v1": 0.01,
+    "IKBranch/UR5e-v2": 0.02,
+}
 
 
 def _interval(value: Sequence[float] | None, fmt: str = "{:.3f}") -> str:
@@ -293,13 +298,13 @@ def goal_lines(records: dict[str, dict[str, Any]]) -> list[str]:
                          f"{_interval(row['improvement'][PAPER_RULE])}, CI above 0.5: "
                          f"{verdict}{ceiling}")
             if env_id in HEADLINE_GOALS:
-                success = row["success"][0]
+                success, most = row["success"][0], HEADLINE_GOALS[env_id]
                 # No IQM gap where the oracle returns 0 on every task (no scale): n/a.
                 gap = None if row["gap"] is None else row["gap"][0]
-                met = success >= 0.99 and gap is not None and gap <= 0.02
+                met = success >= 0.99 and gap is not None and gap <= most
                 shown = "n/a" if gap is None else f"{gap:.2%}"
                 lines.append(f"  - success {success:.1%} (≥ 99 %), IQM gap {shown} "
-                             f"(≤ 2 %): {'met' if met else '**not met**'}")
+                             f"(≤ {100 * most:.0f} %): {'met' if met else '**not met**'}")
             rival = policies.get(RECEDING_DP)
             if rival and row["decision_ms"] > 0:
                 ratio = rival["decision_ms"] / row["decision_ms"]

@@ -1,6 +1,6 @@
 """``python -m train.sweep``: env × algorithm × seed training trials on Ray Tune.
 
-    python -m train.sweep --env IKBranch/Anthropomorphic-v3 --algo ppo --algo maskable_ppo \\
+    python -m train.sweep --env IKBranch/Anthropomorphic-v4 --algo ppo --algo maskable_ppo \\
         --seeds 0-4 [--root runs/sweep] [--address auto] [--timesteps N] [--episodes 200]
 
 Every trial runs the training code of ``python -m train`` into the same run directory

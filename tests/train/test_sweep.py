@@ -231,6 +231,28 @@ def test_a_rival_optimal_on_some_tasks_caps_the_probability_of_improvement(tmp_p
     assert "attains the optimum on 25.0% of the tasks: P can be at most 0.875" in line
 
 
+def test_each_headline_goal_is_checked_against_its_own_gap():
+    # The same row meets UR5e-v2's goal (IQM gap ≤ 2 %) and misses Anthropomorphic-v4's
+    # (≤ 1 %); success below 99 % misses either.
+    from ikbranch_gym.train.publish import goal_lines
+
+    def record(success, gap):
+        row = {"success": [success, success, success], "gap": [gap, gap, gap],
+               "improvement": {"paper_rule": [0.9, 0.8, 1.0]}, "decision_ms": 0.0}
+        return {"policies": {"paper_rule": {}, "ppo": row}}
+
+    def verdict(env_id, success, gap):
+        lines = goal_lines({env_id: record(success, gap)})
+        return next(line for line in lines if "IQM gap" in line)
+
+    assert verdict("IKBranch/UR5e-v2", 0.995, 0.015).endswith("(≤ 2 %): met")
+    assert verdict("IKBranch/Anthropomorphic-v4", 0.995, 0.015).endswith("(≤ 1 %): **not met**")
+    assert verdict("IKBranch/Anthropomorphic-v4", 0.995, 0.005).endswith("(≤ 1 %): met")
+    assert verdict("IKBranch/UR5e-v2", 0.985, 0.005).endswith("**not met**")
+    assert not [line for line in goal_lines({"IKBranch/UR5e-v1": record(1.0, 0.0)})
+                if "IQM gap" in line]
+
+
 def test_probability_of_improvement_equals_rliables():
     # The vectorised count against rliable's per-task Mann-Whitney U, ties included
     # (scores on a coarse grid tie often; identical columns take rliable's 0.5 branch).
