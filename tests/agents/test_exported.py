@@ -33,6 +33,8 @@ MODELS = [
     # SB3's MlpPolicy, with and without masks
     ("IKBranch/Cartesian-v3", "models/Cartesian-v3/maskable_ppo.zip"),
     ("IKBranch/Cartesian-v3", "models/Cartesian-v3/ppo.zip"),
+    # BranchPolicy reading the free travel of several moves per branch
+    ("IKBranch/Anthropomorphic-v4", "models/Anthropomorphic-v4/maskable_ppo.zip"),
 ]
 EPISODES = 4
 
