@@ -248,7 +248,7 @@ class IKBranchEnv(gym.Env):
     scene_seeds           None                    [lo, hi) of those (None: the training range)
     arm_params            None                    dict of arm parameters (``make_arm``)
     observation           "compact"               "compact" (O(K)) or "ladder" (O(K²), v0/v1)
-    onward_moves          1                       moves of slot 0's checked free travel onward
+    onward_moves          1                       ≥ 2: free_travel_onward over so many moves
     task_file             None                    ``task="file"``: a waypoint file (CSV/JSON)
     task_start            None                    its start q (None: free first branch)
     task_points_abc       None                    four-point files: a, b, c (mm)

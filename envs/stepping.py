@@ -9,7 +9,8 @@ One call per stage for every row given, with no Python between the parts of a st
   one kernel call per round, as ``envs.moves.least_free_travel`` defines it), where the
   layout asks for it the least travel of several onward moves along free paths (the same
   search, layer by layer from the farthest waypoint back, each target carrying the least
-  travel onward from it) and the observation (the template of the task with the
+  travel onward from it; the branches of the waypoint after the next costed only when
+  the search reaches them) and the observation (the template of the task with the
   configuration and slot 0 filled in, as ``envs.observations.ObservationBuilder``
   defines it);
 - :func:`advance` — rows take their actions: what :func:`survey` priced is paid, the arm
@@ -357,7 +358,8 @@ def _least_two_moves(ep, bound, rows, waypoints, pending, costs):
     lower bound, the least travel(c → d) + ``costs[m, d]`` over every d regardless of
     paths. A pick whose cost is a bound is costed first and picked again; a costed pick
     is checked. Bounds never exceed costs, so the first free costed pick is the cheapest
-    (ties: the lower index, as the eager search takes them)."""
+    (ties: the lower index, as the eager search takes them). Moves that would reconfigure
+    the arm inside a process segment are no moves. ``pending`` is consumed."""
     lines, mid, far, second, asking = _second_moves(ep, rows, waypoints, costs)
     estimate, known, at = _cost_bounds(ep, rows, waypoints, lines, second, asking)
     here, there, first = _first_moves(ep, rows, waypoints, estimate, pending)
@@ -442,9 +444,9 @@ def _second_moves(ep, rows, waypoints, costs):
 @njit
 def _cost_bounds(ep, rows, waypoints, lines, second, asking):
     """Per line and branch c of w + 1: what is known of its cost (``estimate``; ``known``
-    where it is the cost): 0 where w + 1 is the task's last waypoint, else the least of
-    its second moves regardless of paths (+inf where it has none); ``at``: each line's
-    index in ``lines`` (−1: none)."""
+    where it is the cost): for its free branches 0 where w + 1 is the task's last
+    waypoint, else the least of its second moves regardless of paths (+inf where it has
+    none, and for the other branches); ``at``: each line's index in ``lines`` (−1: none)."""
     count, k = len(rows), ep.valid.shape[2]
     estimate = np.full((count, k), np.inf)
     known = np.zeros((count, k), dtype=np.bool_)
@@ -469,8 +471,8 @@ def _cost_bounds(ep, rows, waypoints, lines, second, asking):
 @njit
 def _first_moves(ep, rows, waypoints, estimate, pending):
     """The first moves of :func:`_least_two_moves`: both ends and their travel (+inf where
-    no move: into a branch without a way on, reconfiguring inside a segment); branches
-    left with none ask no more."""
+    no move: into a branch whose cost bound is +inf, reconfiguring inside a segment);
+    branches left with none ask no more."""
     count, k = pending.shape
     dof = ep.q.shape[1]
     here, there = np.empty((count, k, dof)), np.empty((count, k, dof))
