@@ -112,4 +112,19 @@ def least_onward_travel(base, moves: int, paths_collide, continuity: bool = True
     return out
 
 
+def raw_onward(base) -> tuple[np.ndarray, np.ndarray]:
+    """The compiled stage's own float64 values for the env's state now: (K,) onward free
+    travel of one move and of ``onward_moves`` moves, before they are scaled, capped at 1
+    and rounded to float32 in the observation (``envs.stepping._onward``)."""
+    from ikbranch_gym.envs import stepping
+
+    k, layout = base.arm.n_branches, base.observation_layout
+    obs = base._episode.observation[0]
+    collision = obs[slice(*layout["slot0/path_collision"])][None].astype(bool)
+    one, several = np.full((1, k), np.inf), np.full((1, k), np.inf)
+    stepping._onward(base._episode._episodes, base.compiled_filter._bound,
+                     np.zeros(1, dtype=np.int64), collision, one, several)
+    return one[0], several[0]
+
+
 IDS = envs.ENV_IDS

@@ -11,7 +11,7 @@ import pytest
 
 import ikbranch_gym.envs as envs
 from ikbranch_gym.envs.observations import OBSERVATIONS
-from tests.envs.env_cases import IDS, least_onward_travel
+from tests.envs.env_cases import IDS, least_onward_travel, raw_onward
 
 
 @pytest.mark.parametrize("kind", OBSERVATIONS)
@@ -125,6 +125,10 @@ def test_free_travel_onward_is_the_cheapest_way_on_over_several_moves(env_id, mo
             onward = obs[slice(*layout["slot0/free_travel_onward"])]
             several = least_onward_travel(base, moves, loop.paths_collide)
             one = least_onward_travel(base, 1, loop.paths_collide)
+            # Exact before rounding: the same sums, in the same order, as enumeration's.
+            raw_one, raw_several = raw_onward(base)
+            np.testing.assert_array_equal(raw_several, several)
+            np.testing.assert_array_equal(raw_one, one)
             np.testing.assert_array_equal(
                 onward, np.minimum(several / (moves * scale), 1.0).astype(np.float32))
             np.testing.assert_array_equal(obs[slice(*layout["slot0/free_travel_out"])],

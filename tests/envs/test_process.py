@@ -36,7 +36,7 @@ from ikbranch_gym.envs.process import (
 from ikbranch_gym.envs.tasks.waypoint_file import write_waypoints
 from ikbranch_gym.envs.vector_env import IKBranchVectorEnv
 from tests.agents.brute_force import brute_force
-from tests.envs.env_cases import least_onward_travel
+from tests.envs.env_cases import least_onward_travel, raw_onward
 
 ARM = "kuka_kr6_r700"
 TURN = math.radians(25.0)
@@ -313,6 +313,7 @@ def test_the_free_travel_several_moves_on_keeps_the_configuration(spin_file):
         expected = least_onward_travel(env, 3, paths_collide)
         np.testing.assert_array_equal(obs[slice(*layout["slot0/free_travel_onward"])],
                                       np.minimum(expected / (3 * scale), 1.0).astype(np.float32))
+        np.testing.assert_array_equal(raw_onward(env)[1], expected)  # exact before rounding
         free = least_onward_travel(env, 3, paths_collide, continuity=False)
         differs += int((free != expected).sum())
         obs, _, done, _, info = env.step(int(rng.choice(np.flatnonzero(info["action_mask"]))))
