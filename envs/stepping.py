@@ -312,7 +312,10 @@ def _onward(ep, bound, live, collision, onward, ahead):
     if not count:
         return
     waypoints = ep.index[rows]
-    out = _least_onward(ep, bound, rows, waypoints, pending.copy(), np.zeros((count, k)))
+    asking = pending.copy()
+    free = _free_branches(ep, rows, waypoints + 1, np.zeros((count, k)))
+    here, there, travel = _moves(ep, rows, waypoints, free, asking)
+    out = _search(ep, bound, rows, here, there, travel, asking)
     for m in range(count):
         onward[inner[m]] = out[m]
     if ep.layout[AHEAD0] < 0:
@@ -332,13 +335,11 @@ def _onward(ep, bound, live, collision, onward, ahead):
         if not deep:
             continue
         lines = lines[:deep]
-        asking = np.empty((deep, k), dtype=np.bool_)
-        for i in range(deep):
-            r, w = rows[lines[i]], waypoints[lines[i]] + j
-            for c in range(k):
-                asking[i, c] = ep.valid[r, w, c] and not ep.endpoint[r, w, c]
-        layer = _least_onward(ep, bound, rows[lines], waypoints[lines] + j, asking,
-                              costs[lines])
+        layer_waypoints = waypoints[lines] + j
+        asking = _free_branches(ep, rows[lines], layer_waypoints, np.zeros((deep, k)))
+        here, there, travel = _costed_moves(ep, rows[lines], layer_waypoints, asking,
+                                            costs[lines])
+        layer = _search(ep, bound, rows[lines], here, there, travel, asking)
         for i in range(deep):
             costs[lines[i]] = layer[i]
     out = _least_two_moves(ep, bound, rows, waypoints, pending, costs)
@@ -348,10 +349,11 @@ def _onward(ep, bound, live, collision, onward, ahead):
 
 @njit
 def _least_two_moves(ep, bound, rows, waypoints, pending, costs):
-    """:func:`_least_onward` over two moves, the same values: per line m and branch a of
-    waypoint w = ``waypoints[m]`` where ``pending[m, a]``, the least travel(a → c) +
-    travel(c → d) + ``costs[m, d]`` along free paths (c a free branch of w + 1, d one of
-    w + 2 with a finite cost; c alone where w + 1 is the task's last waypoint).
+    """The search of :func:`_onward`'s layers over two moves, the same values: per line m
+    and branch a of waypoint w = ``waypoints[m]`` where ``pending[m, a]``, the least
+    travel(a → c) + travel(c → d) + ``costs[m, d]`` along free paths (c a free branch of
+    w + 1, d one of w + 2 with a finite cost; c alone where w + 1 is the task's last
+    waypoint).
 
     The cost of c (its least way on) is found only when a search asks for it: each branch
     a takes its cheapest untried c by travel(a → c) + the cost of c where known, else its
@@ -362,7 +364,8 @@ def _least_two_moves(ep, bound, rows, waypoints, pending, costs):
     the arm inside a process segment are no moves. ``pending`` is consumed."""
     lines, mid, far, second, asking = _second_moves(ep, rows, waypoints, costs)
     estimate, known, at = _cost_bounds(ep, rows, waypoints, lines, second, asking)
-    here, there, first = _first_moves(ep, rows, waypoints, estimate, pending)
+    # The first moves: into the branches of w + 1 with a finite cost bound.
+    here, there, first = _moves(ep, rows, waypoints, estimate < np.inf, pending)
     count, k = pending.shape
     tried = np.zeros((count, k, k), dtype=np.bool_)
     out = np.full((count, k), np.inf)
@@ -412,7 +415,6 @@ def _second_moves(ep, rows, waypoints, costs):
     of the end (``second``, +inf where no move) and the free branches of w + 1 with a
     move left (``asking``)."""
     count, k = costs.shape
-    dof = ep.q.shape[1]
     lines = np.empty(count, dtype=np.int64)
     deep = 0
     for m in range(count):
@@ -420,24 +422,9 @@ def _second_moves(ep, rows, waypoints, costs):
             lines[deep] = m
             deep += 1
     lines = lines[:deep]
-    mid, far = np.empty((deep, k, dof)), np.empty((deep, k, dof))
-    asking = np.empty((deep, k), dtype=np.bool_)
-    targets = np.empty((deep, k), dtype=np.bool_)
-    for i in range(deep):
-        m = lines[i]
-        r, w = rows[m], waypoints[m] + 1
-        mid[i], far[i] = ep.candidates[r, w], ep.candidates[r, w + 1]
-        for c in range(k):
-            asking[i, c] = ep.valid[r, w, c] and not ep.endpoint[r, w, c]
-            targets[i, c] = (ep.valid[r, w + 1, c] and not ep.endpoint[r, w + 1, c]
-                             and costs[m, c] < np.inf)
-    second = np.empty((deep, k, k))
-    _onward_travel(mid, far, asking, targets, ep.weights, second)
-    for i in range(deep):
-        for c in range(k):
-            for d in range(k):
-                second[i, c, d] += costs[lines[i], d]
-    _block_onward(ep, rows[lines], waypoints[lines] + 1, mid, far, second, asking)
+    middle = waypoints[lines] + 1
+    asking = _free_branches(ep, rows[lines], middle, np.zeros((deep, k)))
+    mid, far, second = _costed_moves(ep, rows[lines], middle, asking, costs[lines])
     return lines, mid, far, second, asking
 
 
@@ -469,26 +456,6 @@ def _cost_bounds(ep, rows, waypoints, lines, second, asking):
 
 
 @njit
-def _first_moves(ep, rows, waypoints, estimate, pending):
-    """The first moves of :func:`_least_two_moves`: both ends and their travel (+inf where
-    no move: into a branch whose cost bound is +inf, reconfiguring inside a segment);
-    branches left with none ask no more."""
-    count, k = pending.shape
-    dof = ep.q.shape[1]
-    here, there = np.empty((count, k, dof)), np.empty((count, k, dof))
-    targets = np.empty((count, k), dtype=np.bool_)
-    for m in range(count):
-        r, w = rows[m], waypoints[m]
-        here[m], there[m] = ep.candidates[r, w], ep.candidates[r, w + 1]
-        for c in range(k):
-            targets[m, c] = estimate[m, c] < np.inf
-    first = np.empty((count, k, k))
-    _onward_travel(here, there, pending, targets, ep.weights, first)
-    _block_onward(ep, rows, waypoints, here, there, first, pending)
-    return here, there, first
-
-
-@njit
 def _pick(first, estimate, known, at, tried, lines, branches, pending, columns, need):
     """One round's picks of :func:`_least_two_moves`: per asking (``lines[i]``,
     ``branches[i]``) its cheapest untried c (ties: the lower index) into ``columns[i]``
@@ -516,31 +483,48 @@ def _pick(first, estimate, known, at, tried, lines, branches, pending, columns, 
 
 
 @njit
-def _least_onward(ep, bound, rows, waypoints, pending, costs):
-    """(M, K): per line m (row ``rows[m]``, whose waypoint ``waypoints[m]`` has one after)
-    and branch a where ``pending[m, a]``, the least travel from a to a branch b of the
-    waypoint after plus ``costs[m, b]``, over the b that are valid, whose configuration is
-    free and whose cost is finite, along a free path: cheapest first, one kernel call per
-    round for every line (``envs.moves.least_free_travel``); +inf where there is none.
-    ``pending`` is consumed."""
+def _free_branches(ep, rows, waypoints, costs):
+    """(M, K): per line m the branches of waypoint ``waypoints[m]`` of row ``rows[m]``
+    that are valid, whose configuration is free and whose ``costs[m]`` is finite."""
+    count, k = costs.shape
+    out = np.empty((count, k), dtype=np.bool_)
+    for m in range(count):
+        r, w = rows[m], waypoints[m]
+        for b in range(k):
+            out[m, b] = ep.valid[r, w, b] and not ep.endpoint[r, w, b] and costs[m, b] < np.inf
+    return out
+
+
+@njit
+def _moves(ep, rows, waypoints, targets, pending):
+    """The moves of each line m from the branches of waypoint ``waypoints[m]`` where
+    ``pending[m]`` to those of the one after where ``targets[m]``: both ends (``here``,
+    ``there``) and their travel (+inf where no move: to a branch outside ``targets``,
+    reconfiguring the arm inside a process segment); branches left with none ask no
+    more."""
     count, k = pending.shape
     dof = ep.q.shape[1]
     here, there = np.empty((count, k, dof)), np.empty((count, k, dof))
-    targets = np.empty((count, k), dtype=np.bool_)
     for m in range(count):
         r, w = rows[m], waypoints[m]
         here[m], there[m] = ep.candidates[r, w], ep.candidates[r, w + 1]
-        for b in range(k):
-            targets[m, b] = (ep.valid[r, w + 1, b] and not ep.endpoint[r, w + 1, b]
-                             and costs[m, b] < np.inf)
     travel = np.empty((count, k, k))
     _onward_travel(here, there, pending, targets, ep.weights, travel)
-    for m in range(count):
-        for a in range(k):
-            for b in range(k):
-                travel[m, a, b] += costs[m, b]
     _block_onward(ep, rows, waypoints, here, there, travel, pending)
-    return _search(ep, bound, rows, here, there, travel, pending)
+    return here, there, travel
+
+
+@njit
+def _costed_moves(ep, rows, waypoints, pending, costs):
+    """:func:`_moves` into the free branches of the waypoint after with a finite cost, the
+    travel of each plus the cost of its end ``costs[m, b]``."""
+    targets = _free_branches(ep, rows, waypoints + 1, costs)
+    here, there, travel = _moves(ep, rows, waypoints, targets, pending)
+    for m in range(len(rows)):
+        for a in range(travel.shape[1]):
+            for b in range(travel.shape[2]):
+                travel[m, a, b] += costs[m, b]
+    return here, there, travel
 
 
 @njit
