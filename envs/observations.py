@@ -28,9 +28,8 @@ Everything a task fixes is assembled once per task (:meth:`ObservationBuilder.te
 each step fills in the configuration and slot 0's travel, path collisions and (compact)
 onward free travel, for a batch of episodes at once (``envs.episodes``). The paths behind
 ``path_collision``, ``free_travel_out`` and ``free_travel_onward`` are checked by the env,
-so a policy's decision
-time does not include them; a planner's (``receding_dp``) includes the checks it makes
-itself.
+so a policy's decision time does not include them; a planner's (``receding_dp``)
+includes the checks it makes itself.
 """
 
 from __future__ import annotations
