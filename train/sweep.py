@@ -15,11 +15,12 @@ into interval estimates.
 Ray starts embedded on this machine's cores unless ``--address`` names an existing
 cluster (``auto``, ``ray://host:10001``; the root must then be storage every node sees).
 A failed trial is retried (``--max-failures``) and continues from its last checkpoint; a
-trial whose ``evaluation.json`` exists is skipped, so running the same command again
-resumes a sweep. Across machines and runs: ``python -m train.aggregate --publish``
-archives every finished trial's records (not its checkpoints) in the repository,
-``docs/results/sweep/trials`` (``ARCHIVE``, laid out as a root), and a trial archived
-there is skipped too.
+trial whose ``evaluation.json`` exists at the trial's budget is skipped, so running the
+same command again resumes a sweep (a record of another budget is no result of the trial:
+it is trained again, into a root of its own). Across machines and runs:
+``python -m train.aggregate --publish`` archives every finished trial's records (not its
+checkpoints) in the repository, ``docs/results/sweep/trials`` (``ARCHIVE``, laid out as a
+root), and a trial archived there is skipped too.
 """
 
 from __future__ import annotations
@@ -32,8 +33,10 @@ import time
 from pathlib import Path
 from typing import Any
 
+import yaml
+
 from ikbranch_gym.envs.files import write_atomically
-from ikbranch_gym.train.hyperparams import ALGORITHMS
+from ikbranch_gym.train.hyperparams import ALGORITHMS, hyperparams_for
 
 ROOT = Path(__file__).resolve().parent.parent
 #: Finished trials' records, committed (``train.publish.archive``): a root without models.
@@ -64,12 +67,28 @@ def done_path(spec: dict[str, Any], root: Path | None = None) -> Path:
     return run_dir(root, env_id, spec["algo"], int(spec["seed"])) / "evaluation.json"
 
 
+def budget(spec: dict[str, Any]) -> int:
+    """A training trial's steps: ``--timesteps``, else ``n_timesteps`` of its hyperparameter
+    overrides, else of its config entry."""
+    if spec.get("timesteps"):
+        return int(spec["timesteps"])
+    params = hyperparams_for(spec["env_id"], spec["algo"])
+    params.update(spec.get("hyperparams") or {})
+    return int(params["n_timesteps"])
+
+
 def finished(spec: dict[str, Any]) -> Path | None:
-    """The record of ``spec``'s trial if it is done: in its root, or archived."""
+    """The record of ``spec``'s trial if it is done: in its root, or archived. A training
+    trial's record counts only at the trial's budget: a record of another number of steps
+    (the budget changed since) is no result of this trial."""
     for root in (spec["root"], spec.get("archive", ARCHIVE)):
         path = done_path(spec, root)
-        if path.exists():
-            return path
+        if not path.exists():
+            continue
+        if spec["algo"] != BASELINES_TRIAL and (
+                json.loads(path.read_text())["timesteps"] != budget(spec)):
+            continue
+        return path
     return None
 
 
@@ -85,7 +104,6 @@ def run_trial(spec: dict[str, Any]) -> dict[str, Any]:
     from ikbranch_gym.agents.evaluation import evaluate
     from ikbranch_gym.envs.seeds import TEST_SEED, held_out
     from ikbranch_gym.train.callbacks import LATEST
-    from ikbranch_gym.train.hyperparams import hyperparams_for
     from ikbranch_gym.train.imitation import RECORD as IMITATION_RECORD
     from ikbranch_gym.train.training import RunConfig, train
 
@@ -106,6 +124,11 @@ def run_trial(spec: dict[str, Any]) -> dict[str, Any]:
         return record
     seed = int(spec["seed"])
     directory = run_dir(root, env_id, algo, seed)
+    steps = budget(spec)
+    trained_for = _trained_for(directory)
+    if trained_for is not None and trained_for != steps:
+        raise ValueError(f"{directory} holds a model trained for {trained_for} steps, where "
+                         f"this trial's budget is {steps}: give the sweep another --root")
     start = time.perf_counter()
     if not (directory / "model.zip").exists():
         resume = (directory / "checkpoints" / LATEST).exists()
@@ -118,10 +141,8 @@ def run_trial(spec: dict[str, Any]) -> dict[str, Any]:
     model = str(directory / "model.zip")
     cloned = directory / IMITATION_RECORD
     result = evaluate(env_id, [model], episodes, TEST_SEED, env_kwargs=env_kwargs)
-    params = hyperparams_for(env_id, algo)
     record = {
-        "env": env_id, "kind": "trial", "algo": algo, "seed": seed,
-        "timesteps": spec.get("timesteps") or params["n_timesteps"],
+        "env": env_id, "kind": "trial", "algo": algo, "seed": seed, "timesteps": steps,
         "train_minutes": (trained - start) / 60,
         "eval_minutes": (time.perf_counter() - trained) / 60,
         "episodes": episodes, "task_seed": TEST_SEED, "env_kwargs": env_kwargs,
@@ -132,6 +153,15 @@ def run_trial(spec: dict[str, Any]) -> dict[str, Any]:
         record["imitation_episodes"] = json.loads(cloned.read_text())["episodes"]
     _write_json(done_path(spec), record)
     return record
+
+
+def _trained_for(directory: Path) -> int | None:
+    """The steps the model in a run directory was trained for (its ``config.yml``), or
+    None where it holds no model."""
+    if not (directory / "model.zip").exists():
+        return None
+    config = yaml.safe_load((directory / "config.yml").read_text())
+    return int(config["hyperparams"]["n_timesteps"])
 
 
 def _trainable(config: dict[str, Any]) -> None:

@@ -16,6 +16,28 @@ TINY = ['--hyperparams', '{"n_steps": 32, "batch_size": 32, "n_epochs": 1, '
         '"eval_freq": 64, "n_eval_episodes": 2, "checkpoint_freq": 64}']
 
 
+def test_a_record_counts_only_at_the_trials_budget(tmp_path):
+    root, store = tmp_path / "root", tmp_path / "archive"
+    spec = sweep.trials(["IKBranch/ToolTransfer-v1"], ["maskable_ppo"], [0], root, 3, 128,
+                        {}, store)[1]
+    archived = sweep.done_path(spec, store)
+    archived.parent.mkdir(parents=True)
+    archived.write_text(json.dumps({"timesteps": 128}))
+    assert sweep.finished(spec) == archived
+    longer = {**spec, "timesteps": 256}
+    assert sweep.budget(longer) == 256 and sweep.finished(longer) is None
+    overridden = {**spec, "timesteps": None, "hyperparams": {"n_timesteps": 64}}
+    assert sweep.budget(overridden) == 64 and sweep.finished(overridden) is None
+    # A model of another budget in the trial's run directory: an error naming both.
+    directory = sweep.run_dir(root, "IKBranch/ToolTransfer-v1", "maskable_ppo", 0)
+    directory.mkdir(parents=True)
+    (directory / "model.zip").write_bytes(b"")
+    (directory / "config.yml").write_text("hyperparams:\n  n_timesteps: 128\n")
+    with pytest.raises(ValueError, match="trained for 128 steps, where this trial's budget "
+                                         "is 256"):
+        sweep.run_trial(longer)
+
+
 def test_tiny_sweep_writes_run_directories_and_resumes(tmp_path):
     import ray
 
