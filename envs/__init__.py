@@ -137,11 +137,30 @@ ONWARD_SUCCESSORS: dict[str, tuple[str, int]] = {
 }
 ENV_SPECS.update({new: {**copy.deepcopy(ENV_SPECS[old]), "onward_moves": moves}
                   for old, (new, moves) in ONWARD_SUCCESSORS.items()})
+#: Ids that check only the moves that matter: the id before, whose observation checks the
+#: moves into the next waypoint in order of least travel until this many are free
+#: (``checked_moves``); the rest read as colliding, and a move taken among them is checked
+#: then and priced as it is. Of an arm's hundreds of branches most are turns of a joint
+#: that no good plan takes next, and checking every path there was most of a step's cost
+#: (docs/training.md).
+CHECKED_SUCCESSORS: dict[str, tuple[str, int]] = {
+    "IKBranch/UR5e-v2": ("IKBranch/UR5e-v3", 8),
+}
+ENV_SPECS.update({new: {**copy.deepcopy(ENV_SPECS[old]), "checked_moves": moves}
+                  for old, (new, moves) in CHECKED_SUCCESSORS.items()})
 ENV_IDS: tuple[str, ...] = tuple(ENV_SPECS)
+
+
+def _latest(env_id: str) -> str:
+    """The newest generation of ``env_id`` among the ids that see further or check less."""
+    for successors in (ONWARD_SUCCESSORS, CHECKED_SUCCESSORS):
+        env_id = successors.get(env_id, (env_id,))[0]
+    return env_id
+
+
 #: The ids of the current generation, in ``ENV_IDS`` order of their lines.
-CURRENT_IDS: tuple[str, ...] = (
-    *(ONWARD_SUCCESSORS.get(env_id, (env_id,))[0] for env_id in SUCCESSORS.values()),
-    "IKBranch/KukaKR6Deburring-v0")
+CURRENT_IDS: tuple[str, ...] = (*(_latest(env_id) for env_id in SUCCESSORS.values()),
+                                "IKBranch/KukaKR6Deburring-v0")
 
 for _env_id, _kwargs in ENV_SPECS.items():
     if _env_id not in gym.registry:
@@ -169,7 +188,7 @@ def warm_up() -> None:
     # arm with hundreds of branches (factored travel summaries), and a vector env (a stack
     # of scenes).
     for env_id in ("IKBranch/Anthropomorphic-v4", "IKBranch/ToolTransfer-v2",
-                   "IKBranch/UR5e-v2"):
+                   "IKBranch/UR5e-v3"):
         env = gym.make(env_id, n_waypoints=2)
         env.reset(seed=0)
         unwrapped = env.unwrapped
@@ -184,5 +203,5 @@ def warm_up() -> None:
     vec.close()
 
 
-__all__ = ["CURRENT_IDS", "ENV_IDS", "ENV_SPECS", "ONWARD_SUCCESSORS", "SUCCESSORS",
-           "warm_up"]
+__all__ = ["CHECKED_SUCCESSORS", "CURRENT_IDS", "ENV_IDS", "ENV_SPECS", "ONWARD_SUCCESSORS",
+           "SUCCESSORS", "warm_up"]

@@ -99,6 +99,9 @@ class EpisodeBatch:
         self.inside = np.zeros((size, n), dtype=bool)
         self.limits = np.full(size, np.inf)
         self.branch = np.full(size, -1, dtype=np.int64)
+        #: Per row and branch of its next waypoint: the move's path was checked (with
+        #: ``observations.checked_moves`` the survey checks only some; ``stepping``).
+        self.checked = np.ones((size, k), dtype=bool)
         self._configuration = np.ascontiguousarray(arm.branch_closed_form, dtype=np.int64)
         self._revolute = np.ascontiguousarray(arm.revolute_mask)
         #: Per row: the priced moves of its current state into its next waypoint, as
@@ -122,7 +125,8 @@ class EpisodeBatch:
         numbers = np.array([cost.travel_weight, cost.time_weight, pricer.collision_penalty,
                             pricer.invalid_penalty, float(pricer.terminate_on_collision),
                             pricer.max_transition_cost, pricer.travel_scale,
-                            pricer.checker.resolution, builder.onward_moves])
+                            pricer.checker.resolution, builder.onward_moves,
+                            builder.checked_moves or 0])
         onward = layout.get("slot0/free_travel_out", (-1, -1))
         ahead = layout.get("slot0/free_travel_onward", (-1, -1))
         slices = np.array([*layout["q"], *layout["slot0/travel"],
@@ -133,12 +137,12 @@ class EpisodeBatch:
             self.flags, self.observation, cost.weights, cost.speeds, numbers, slices,
             builder._centre, builder._half_range, pricer.checker.lever, self.scenes,
             self.tokens, *self._memo, self.inside, self.limits, self._configuration,
-            self._revolute, self.branch)
+            self._revolute, self.branch, self.checked)
 
     #: The per-row arrays (a view of one row shares them).
     _ROW_ARRAYS = ("q", "index", "collided", "invalid", "candidates", "valid", "endpoint",
                    "start", "free_start", "lengths", "templates", "observation", "tokens",
-                   "inside", "limits", "branch")
+                   "inside", "limits", "branch", "checked")
 
     def view(self, row: int, checks: CompiledFilter) -> EpisodeBatch:
         """A batch of one whose arrays are row ``row`` of this batch's: what either does to
@@ -190,7 +194,8 @@ class EpisodeBatch:
         flags = np.empty((3, count), dtype=bool)
         success = np.empty(count, dtype=bool)
         waypoint = self.index[rows]
-        stepping.advance(self._episodes, rows, actions, values, flags, success)
+        stepping.advance(self._episodes, self.checks._bound, rows, actions, values, flags,
+                         success)
         terms = {name: values[3 + i] for i, name in enumerate(REWARD_TERMS)}
         return Steps(waypoint=waypoint, branch=actions, reward=values[0], travel=values[1],
                      time=values[2], terms=terms, collision=flags[1], invalid=flags[2],

@@ -166,7 +166,10 @@ class IKBranchEnv(gym.Env):
       invalid), ``valid`` (K), ``endpoint_collision`` (K: the candidate configuration itself
       touches something).
     - Slot 0 also: ``travel`` (K) from the current configuration and ``path_collision`` (K)
-      along the path there.
+      along the path there. With ``checked_moves`` n the env checks these paths in order
+      of least travel (ties: the lower branch) until n are free; the moves left unchecked
+      read as colliding (1), here and in the onward values, and one taken is checked then
+      and paid as it is (its reward is the reward with every move checked).
     - ``observation="compact"`` (the default; O(K) values, for arms with hundreds of
       branches): per branch of every slot ``travel_out``, the least travel to a free
       branch of the waypoint after; slots h ≥ 1 ``travel_in``, the least travel from a
@@ -249,6 +252,7 @@ class IKBranchEnv(gym.Env):
     arm_params            None                    dict of arm parameters (``make_arm``)
     observation           "compact"               "compact" (O(K)) or "ladder" (O(K²), v0/v1)
     onward_moves          1                       ≥ 2: free_travel_onward over so many moves
+    checked_moves         None                    check moves until so many are free (None: all)
     task_file             None                    ``task="file"``: a waypoint file (CSV/JSON)
     task_start            None                    its start q (None: free first branch)
     task_points_abc       None                    four-point files: a, b, c (mm)
@@ -271,6 +275,12 @@ class IKBranchEnv(gym.Env):
     ===================== ======================= ===========================================
 
     ## Version history
+    - UR5e **-v3** (2026-12-05): the env checks the moves into the next waypoint in order
+      of least travel until eight are free (``checked_moves``), where UR5e-v2 checks all
+      256 paths; the moves left unchecked read as colliding, and one taken is checked then
+      and paid as it is. Tasks, scenes, rewards and collision verdicts are UR5e-v2's,
+      which stays registered for its published models. ``checked_moves`` is a new
+      argument for every id (None, every move checked, by default).
     - Anthropomorphic **-v4**, UR5e **-v2** (2026-12-04): the observation also shows, per
       branch of the next waypoint, the least travel of the next three (Anthropomorphic) or
       two (UR5e) moves along paths the env has checked to be collision-free
@@ -374,6 +384,7 @@ class IKBranchEnv(gym.Env):
         arm_params: dict[str, Any] | None = None,
         observation: str = "compact",
         onward_moves: int = 1,
+        checked_moves: int | None = None,
         task_file: str | None = None,
         task_start: list[float] | None = None,
         task_points_abc: list[float] | None = None,
@@ -444,6 +455,7 @@ class IKBranchEnv(gym.Env):
         self._observations = ObservationBuilder(
             self.arm, self.lookahead, self.pricer.travel_scale, observation,
             _integer(onward_moves, "onward_moves", 1),
+            None if checked_moves is None else _integer(checked_moves, "checked_moves", 1),
         )
         self.observation_layout = self._observations.layout
         self.observation_space = spaces.Box(

@@ -10,10 +10,12 @@ limits and travel to [0, 1] by the largest possible travel:
     ``travel_out`` (K: per branch, the least travel to a *free* branch of the waypoint
     after, i.e. valid and its configuration collision-free; 1 at the task's last
     waypoint); slot 0 also ``travel`` (K, from the current configuration),
-    ``path_collision`` (K, along the path there) and ``free_travel_out`` (K: per branch,
-    the least travel onward to the waypoint after along a path that is collision-free,
-    checked; 1 where none is, at the last waypoint, and for branches whose own path from
-    the current configuration collides); with ``onward_moves`` n ≥ 2 slot 0 also
+    ``path_collision`` (K, along the path there; with ``checked_moves`` n only the paths
+    of least travel until n are free are checked, and the others read 1) and
+    ``free_travel_out`` (K: per branch, the least travel onward to the waypoint after
+    along a path that is collision-free, checked; 1 where none is, at the last waypoint,
+    and for branches whose own path from the current configuration collides); with
+    ``onward_moves`` n ≥ 2 slot 0 also
     ``free_travel_onward`` (K: per branch, the least travel of the next n moves — fewer
     where the task ends sooner — along paths checked collision-free, each ending in a free
     configuration, over n × the scale; 1 where none is, at the last waypoint, and for
@@ -209,7 +211,8 @@ class ObservationBuilder:
     ``kind``: one of ``OBSERVATIONS``)."""
 
     def __init__(self, arm: Arm, lookahead: int, travel_scale: float,
-                 kind: str = "compact", onward_moves: int = 1) -> None:
+                 kind: str = "compact", onward_moves: int = 1,
+                 checked_moves: int | None = None) -> None:
         if kind not in OBSERVATIONS:
             raise ValueError(f"observation must be one of {', '.join(OBSERVATIONS)}, got {kind!r}")
         if onward_moves > 1 and kind != "compact":
@@ -218,6 +221,9 @@ class ObservationBuilder:
         self.arm, self.lookahead, self.travel_scale, self.kind = arm, lookahead, travel_scale, kind
         #: Moves the onward free travel of slot 0 covers (``free_travel_onward`` from 2).
         self.onward_moves = onward_moves
+        #: Moves into slot 0 whose paths are checked, in order of least travel, until so
+        #: many are free (None: every move); the others read as colliding.
+        self.checked_moves = checked_moves
         lower, upper = arm.joint_limits[:, 0], arm.joint_limits[:, 1]
         self._centre, self._half_range = (upper + lower) / 2, (upper - lower) / 2
         #: An arm with turn branches: its branch factors (closed-form index per branch,

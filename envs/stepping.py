@@ -4,7 +4,9 @@ One call per stage for every row given, with no Python between the parts of a st
 
 - :func:`survey` — for rows in a new state, the moves into their next waypoint: every
   path from where the arm stands (looked up in the path memo, the rest checked in one
-  call of the collision filter's kernel, each path in its row's scene), every price
+  call of the collision filter's kernel, each path in its row's scene; where the batch
+  checks ``CHECKED_MOVES`` = n ≥ 1 moves, the moves in order of least travel until n are
+  free, a round of kernel calls for every row's next ones), every price
   (``envs.moves._price``), the least travel onward along a free path (cheapest first,
   one kernel call per round, as ``envs.moves.least_free_travel`` defines it), where the
   layout asks for it the least travel of several onward moves along free paths (the same
@@ -13,7 +15,8 @@ One call per stage for every row given, with no Python between the parts of a st
   the search reaches them) and the observation (the template of the task with the
   configuration and slot 0 filled in, as ``envs.observations.ObservationBuilder``
   defines it);
-- :func:`advance` — rows take their actions: what :func:`survey` priced is paid, the arm
+- :func:`advance` — rows take their actions: what :func:`survey` priced is paid (a move
+  it left unchecked is checked now and, if its path collides, priced again), the arm
   moves.
 
 The path memo is an open-addressing hash table of verdicts, keyed by the exact bits of a
@@ -44,7 +47,7 @@ _FLAGS = np.array([False, True])
 MEMO_SLOTS = 2**16
 #: Indices into ``Episodes.numbers``.
 TRAVEL_WEIGHT, TIME_WEIGHT, COLLISION_PENALTY, INVALID_PENALTY, TERMINATE, MAX_COST = range(6)
-TRAVEL_SCALE, RESOLUTION, ONWARD_MOVES = 6, 7, 8
+TRAVEL_SCALE, RESOLUTION, ONWARD_MOVES, CHECKED_MOVES = 6, 7, 8, 9
 #: Indices into ``Episodes.layout``: start and stop of the observation's slices (q, slot
 #: 0's travel, path collisions, onward free travel and free travel of ``ONWARD_MOVES``
 #: moves; −1 where the layout has none).
@@ -54,7 +57,7 @@ FIELDS = ("q", "index", "collided", "invalid", "candidates", "valid", "endpoint"
           "free_start", "lengths", "templates", "values", "flags", "observation", "weights",
           "speeds", "numbers", "layout", "centre", "half_range", "lever", "scenes", "tokens",
           "memo_keys", "memo_tokens", "memo_verdicts", "memo_count", "inside", "limits",
-          "configuration", "revolute", "branch")
+          "configuration", "revolute", "branch", "checked")
 
 
 @structref.register
@@ -78,14 +81,16 @@ structref.define_proxy(Episodes, _EpisodesType, list(FIELDS))
 def make_episodes(q, index, collided, invalid, candidates, valid, endpoint, free_start,
                   lengths, templates, values, flags, observation, weights, speeds, numbers,
                   layout, centre, half_range, lever, scenes, tokens, memo_keys, memo_tokens,
-                  memo_verdicts, memo_count, inside, limits, configuration, revolute, branch):
+                  memo_verdicts, memo_count, inside, limits, configuration, revolute, branch,
+                  checked):
     """An :class:`Episodes` of these arrays (``FIELDS`` order), made in compiled code:
     numba caches this on disk, where the proxy's own constructor is compiled again in
     every process."""
     return Episodes(q, index, collided, invalid, candidates, valid, endpoint, free_start,
                     lengths, templates, values, flags, observation, weights, speeds, numbers,
                     layout, centre, half_range, lever, scenes, tokens, memo_keys, memo_tokens,
-                    memo_verdicts, memo_count, inside, limits, configuration, revolute, branch)
+                    memo_verdicts, memo_count, inside, limits, configuration, revolute, branch,
+                    checked)
 
 
 def memo_arrays(dof: int) -> tuple[np.ndarray, ...]:
@@ -218,9 +223,12 @@ def survey(ep, bound, rows):
             live[live_count] = r
             live_count += 1
     live = live[:live_count]
-    collision = _slot_paths(ep, bound, live)
-    if live_count:
-        _price_rows(ep, live, collision)
+    if ep.numbers[CHECKED_MOVES] > 0:
+        collision = _least_travel_paths(ep, bound, live)
+    else:
+        collision = _slot_paths(ep, bound, live)
+        if live_count:
+            _price_rows(ep, live, collision)
     onward = np.full(collision.shape, np.inf)
     ahead = np.full(collision.shape, np.inf)
     if ep.layout[ONWARD0] >= 0:
@@ -261,6 +269,120 @@ def _slot_paths(ep, bound, live):
         for i in range(count):
             collision[lines[i], branches[i]] = hits[i]
     return collision
+
+
+@njit
+def _least_travel_paths(ep, bound, live):
+    """:func:`_slot_paths` where the batch checks ``CHECKED_MOVES`` = n moves, and the
+    prices of ``live`` rows: per row its allowed moves in order of least travel (ties: the
+    lower branch) are checked until n of them are free or none is left; the rest stay
+    unchecked (``ep.checked`` False) and read as colliding here, so neither the
+    observation nor the onward search takes them for free. Their price is that of a free
+    move until :func:`advance` checks one that is taken. At a free start every verdict is
+    the branch's own configuration's: nothing is left unchecked."""
+    count, k = len(live), ep.valid.shape[2]
+    collision = np.zeros((count, k), dtype=np.bool_)
+    if not count:
+        return collision
+    _price_rows(ep, live, collision)  # the travel that orders the moves
+    order, size = _travel_order(ep, live, collision)
+    done, free = np.zeros(count, dtype=np.int64), np.zeros(count, dtype=np.int64)
+    target = int(ep.numbers[CHECKED_MOVES])
+    while True:  # a round: each row's next moves, as many as it lacks free ones
+        lines, branches = _next_checks(order, size, done, free, target)
+        if not len(lines):
+            break
+        rows = live[lines]
+        hits = _paths_collide(ep, bound, rows, ep.q[rows], _targets(ep, rows, branches))
+        for i in range(len(lines)):
+            collision[lines[i], branches[i]] = hits[i]
+            free[lines[i]] += 0 if hits[i] else 1
+    for line in range(count):
+        for i in range(done[line], size[line]):
+            ep.checked[live[line], order[line, i]] = False
+    _price_rows(ep, live, collision)
+    for line in range(count):
+        for i in range(done[line], size[line]):
+            collision[line, order[line, i]] = True
+    return collision
+
+
+@njit
+def _travel_order(ep, live, collision):
+    """Per line of ``live``: its allowed moves by least priced travel (ties: the lower
+    branch) in ``order[line, :size[line]]``, each marked checked until found otherwise; at
+    a free start none (``collision`` takes the branches' own verdicts)."""
+    count, k = len(live), ep.valid.shape[2]
+    order = np.empty((count, k), dtype=np.int64)
+    size = np.zeros(count, dtype=np.int64)
+    for line in range(count):
+        r = live[line]
+        w = ep.index[r]
+        still = ep.free_start[r] and w == 0
+        allowed = np.empty(k, dtype=np.int64)
+        for b in range(k):
+            ep.checked[r, b] = True
+            if not _allowed(ep, r, w, b):
+                continue
+            if still:
+                collision[line, b] = ep.endpoint[r, 0, b]
+                continue
+            allowed[size[line]] = b
+            size[line] += 1
+        picked = allowed[: size[line]]
+        ranked = np.argsort(ep.values[1, r, 0][picked], kind="mergesort")
+        order[line, : size[line]] = picked[ranked]
+    return order, size
+
+
+@njit
+def _next_checks(order, size, done, free, target):
+    """(lines, branches) of a round of :func:`_least_travel_paths`: each line's next moves
+    in ``order``, as many as it lacks free ones of ``target`` (``done`` advances)."""
+    asked = 0
+    for line in range(len(size)):
+        asked += min(target - free[line], size[line] - done[line])
+    lines, branches = np.empty(asked, dtype=np.int64), np.empty(asked, dtype=np.int64)
+    i = 0
+    for line in range(len(size)):
+        for _ in range(min(target - free[line], size[line] - done[line])):
+            lines[i], branches[i] = line, order[line, done[line]]
+            done[line] += 1
+            i += 1
+    return lines, branches
+
+
+@njit
+def _targets(ep, rows, branches):
+    """(M, dof): branch ``branches[m]`` of row ``rows[m]``'s next waypoint."""
+    out = np.empty((len(rows), ep.q.shape[1]))
+    for m in range(len(rows)):
+        out[m] = ep.candidates[rows[m], ep.index[rows[m]], branches[m]]
+    return out
+
+
+@njit
+def _check_taken(ep, bound, rows, actions):
+    """Moves among ``rows``' actions that :func:`survey` left unchecked: their paths are
+    checked (one kernel call), and a row whose move collides is priced again."""
+    taken = np.empty(len(rows), dtype=np.int64)
+    count = 0
+    for i in range(len(rows)):
+        r = rows[i]
+        if ep.index[r] < ep.lengths[r] and not ep.checked[r, actions[i]]:
+            taken[count] = i
+            count += 1
+    if not count:
+        return
+    owners, moves = rows[taken[:count]], actions[taken[:count]]
+    hits = _paths_collide(ep, bound, owners, ep.q[owners], _targets(ep, owners, moves))
+    for m in range(count):
+        r, a = owners[m], moves[m]
+        ep.checked[r, a] = True
+        if hits[m]:
+            collision = np.zeros((1, ep.valid.shape[2]), dtype=np.bool_)
+            collision[0, a] = True
+            _price_rows(ep, owners[m : m + 1], collision)
 
 
 @njit
@@ -658,11 +780,14 @@ def _observe(ep, rows, live, collision, onward, ahead):
 
 # --------------------------------------------------------------------------- advance
 @njit
-def advance(ep, rows, actions, values, flags, success):
+def advance(ep, bound, rows, actions, values, flags, success):
     """Rows ``rows`` move to branch ``actions`` of their next waypoint: per row i the
     priced ``values[:, i]`` and ``flags[:, i]`` (terminal, collision, invalid) of the move
     and ``success[i]`` (the episode ended with every waypoint reached, no collision, no
-    invalid branch) are written; the state advances."""
+    invalid branch) are written; the state advances. A move :func:`survey` left
+    unchecked is checked first."""
+    if ep.numbers[CHECKED_MOVES] > 0:
+        _check_taken(ep, bound, rows, actions)
     for i in range(len(rows)):
         r, a = rows[i], actions[i]
         w = ep.index[r]

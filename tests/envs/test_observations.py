@@ -11,7 +11,7 @@ import pytest
 
 import ikbranch_gym.envs as envs
 from ikbranch_gym.envs.observations import OBSERVATIONS
-from tests.envs.env_cases import IDS, least_onward_travel, raw_onward
+from tests.envs.env_cases import IDS, least_onward_travel, raw_onward, same_info
 
 
 @pytest.mark.parametrize("kind", OBSERVATIONS)
@@ -137,6 +137,76 @@ def test_free_travel_onward_is_the_cheapest_way_on_over_several_moves(env_id, mo
             obs, _, done, _, _ = env.step(int(rng.choice(np.flatnonzero(base.action_masks()))))
     if env_id == "IKBranch/Anthropomorphic-v4":  # a trap: free one move on, blocked after
         assert blocked
+
+
+@pytest.mark.parametrize(("env_id", "checked"), [("IKBranch/KukaKR6-v1", 3),
+                                                 ("IKBranch/UR5e-v2", 8)])
+def test_checked_moves_are_those_of_least_travel_until_so_many_are_free(env_id, checked):
+    # Enumeration by a separate checker (the loop backend): the masked moves in order of
+    # least travel (ties: the lower branch) are checked until `checked` are free; those
+    # read their verdict, the others 1, and so do the onward values from them, which are
+    # otherwise the values of the env that checks every move. Played side by side with
+    # that env on the same random valid actions (half of them, where there is one, a free
+    # move left unchecked),
+    # every reward, flag and info is the same, also where the move taken was left
+    # unchecked, free or colliding.
+    from ikbranch_gym.envs.models import CollisionChecker
+
+    every = gym.make(env_id, n_waypoints=4)
+    some = gym.make(env_id, n_waypoints=4, checked_moves=checked)
+    base = some.unwrapped
+    layout = base.observation_layout
+    path = slice(*layout["slot0/path_collision"])
+    onward = [slice(*layout[name]) for name in ("slot0/free_travel_out",
+                                                "slot0/free_travel_onward") if name in layout]
+    left_unchecked, taken = 0, {True: 0, False: 0}  # unchecked moves taken, by verdict
+    for seed in range(3):
+        rng = np.random.default_rng(seed)
+        full, full_info = every.reset(seed=seed)
+        obs, info = some.reset(seed=seed)
+        assert same_info(info, full_info)
+        loop = CollisionChecker(base.model, dof=base.arm.dof, backend="loop")
+        done = False
+        while not done:
+            i, ladder = base.index, base.ladder
+            # Outside the mask 0, as with every move checked.
+            expected = np.zeros(base.arm.n_branches, dtype=np.float32)
+            allowed = np.flatnonzero(base.action_masks())
+            known = np.zeros(base.arm.n_branches, dtype=bool)  # checked and free
+            left = np.zeros(base.arm.n_branches, dtype=bool)  # not checked
+            if i == 0 and ladder.task.free_start:  # the arm starts in the branch it picks
+                expected[allowed] = ladder.endpoint_collision[0, allowed]
+            else:
+                order = allowed[np.argsort(base.cost.travel(base.q, ladder.candidates[i][allowed]),
+                                           kind="stable")]
+                hits = loop.paths_collide(base.q, ladder.candidates[i][order])
+                count = np.searchsorted(np.cumsum(~hits), checked) + 1
+                expected[order] = 1.0
+                expected[order[:count]] = hits[:count]
+                left[order[count:]] = True
+                left_unchecked += int(left.sum())
+            np.testing.assert_array_equal(obs[path], expected)
+            known[allowed] = expected[allowed] == 0
+            np.testing.assert_array_equal(obs[path][known], full[path][known])
+            for part in onward:
+                np.testing.assert_array_equal(obs[part], np.where(known, full[part], 1.0))
+            unchecked = np.flatnonzero(left & (full[path] == 0))
+            if len(unchecked) and rng.random() < 0.5:  # a free move the env left unchecked
+                action = int(rng.choice(unchecked))
+            else:
+                action = int(rng.choice(allowed))
+            if left[action]:
+                taken[bool(full[path][action])] += 1
+            full, full_reward, full_done, _, full_info = every.step(action)
+            obs, reward, done, _, info = some.step(action)
+            assert (reward, done) == (full_reward, full_done) and same_info(info, full_info)
+    assert left_unchecked and taken[True] and taken[False]
+
+
+def test_checked_moves_bad_values_are_refused():
+    for bad in (0, -1, 1.5, True, "8"):
+        with pytest.raises(ValueError, match="checked_moves"):
+            gym.make("IKBranch/ToolTransfer-v2", checked_moves=bad)
 
 
 def test_onward_moves_shape_the_layout_and_bad_values_are_refused():
