@@ -36,7 +36,7 @@ from typing import Any
 import yaml
 
 from ikbranch_gym.envs.files import write_atomically
-from ikbranch_gym.train.hyperparams import ALGORITHMS, hyperparams_for
+from ikbranch_gym.train.hyperparams import ALGORITHMS
 
 ROOT = Path(__file__).resolve().parent.parent
 #: Finished trials' records, committed (``train.publish.archive``): a root without models.
@@ -67,28 +67,35 @@ def done_path(spec: dict[str, Any], root: Path | None = None) -> Path:
     return run_dir(root, env_id, spec["algo"], int(spec["seed"])) / "evaluation.json"
 
 
+def _run(spec: dict[str, Any], **options: Any) -> Any:
+    """The ``train.training.RunConfig`` of a training trial (``options``: its other fields)."""
+    from ikbranch_gym.train.training import RunConfig
+
+    seed = int(spec["seed"])
+    return RunConfig(algo=spec["algo"], env_id=spec["env_id"], seed=seed,
+                     run_dir=run_dir(Path(spec["root"]), spec["env_id"], spec["algo"], seed),
+                     timesteps=spec.get("timesteps"),
+                     hyperparams=dict(spec.get("hyperparams") or {}), **options)
+
+
 def budget(spec: dict[str, Any]) -> int:
-    """A training trial's steps: ``--timesteps``, else ``n_timesteps`` of its hyperparameter
-    overrides, else of its config entry."""
-    if spec.get("timesteps"):
-        return int(spec["timesteps"])
-    params = hyperparams_for(spec["env_id"], spec["algo"])
-    params.update(spec.get("hyperparams") or {})
-    return int(params["n_timesteps"])
+    """A training trial's steps, as its training resolves them (``--timesteps``, else its
+    hyperparameter overrides, else its config entry)."""
+    from ikbranch_gym.train.training import resolve
+
+    return int(resolve(_run(spec))["n_timesteps"])
 
 
 def finished(spec: dict[str, Any]) -> Path | None:
     """The record of ``spec``'s trial if it is done: in its root, or archived. A training
     trial's record counts only at the trial's budget: a record of another number of steps
     (the budget changed since) is no result of this trial."""
+    steps = None if spec["algo"] == BASELINES_TRIAL else budget(spec)
     for root in (spec["root"], spec.get("archive", ARCHIVE)):
         path = done_path(spec, root)
-        if not path.exists():
-            continue
-        if spec["algo"] != BASELINES_TRIAL and (
-                json.loads(path.read_text())["timesteps"] != budget(spec)):
-            continue
-        return path
+        if path.exists() and (steps is None
+                              or json.loads(path.read_text())["timesteps"] == steps):
+            return path
     return None
 
 
@@ -105,7 +112,7 @@ def run_trial(spec: dict[str, Any]) -> dict[str, Any]:
     from ikbranch_gym.envs.seeds import TEST_SEED, held_out
     from ikbranch_gym.train.callbacks import LATEST
     from ikbranch_gym.train.imitation import RECORD as IMITATION_RECORD
-    from ikbranch_gym.train.training import RunConfig, train
+    from ikbranch_gym.train.training import train
 
     root, env_id, algo = Path(spec["root"]), spec["env_id"], spec["algo"]
     episodes, env_kwargs = spec["episodes"], held_out(env_id, spec.get("env_kwargs"))
@@ -132,9 +139,7 @@ def run_trial(spec: dict[str, Any]) -> dict[str, Any]:
     start = time.perf_counter()
     if not (directory / "model.zip").exists():
         resume = (directory / "checkpoints" / LATEST).exists()
-        train(RunConfig(algo=algo, env_id=env_id, seed=seed, run_dir=directory,
-                        timesteps=spec.get("timesteps"), resume=resume, progress_bar=False,
-                        hyperparams=dict(spec.get("hyperparams") or {})),
+        train(_run(spec, resume=resume, progress_bar=False),
               argv=["--algo", algo, "--env", env_id, "--seed", str(seed), "--run-dir",
                     str(directory)])
     trained = time.perf_counter()
