@@ -240,7 +240,7 @@ def survey(ep, bound, rows):
 def _slot_paths(ep, bound, live):
     """(len(live), K): the move from each row's configuration to each valid branch of its
     next waypoint collides (its path; at a free start the branch's own configuration)."""
-    k, dof = ep.valid.shape[2], ep.q.shape[1]
+    k = ep.valid.shape[2]
     collision = np.zeros((len(live), k), dtype=np.bool_)
     lines = np.empty(len(live) * k, dtype=np.int64)
     branches = np.empty(len(live) * k, dtype=np.int64)
@@ -258,14 +258,8 @@ def _slot_paths(ep, bound, live):
             lines[count], branches[count] = line, b
             count += 1
     if count:
-        rows = np.empty(count, dtype=np.int64)
-        starts, ends = np.empty((count, dof)), np.empty((count, dof))
-        for i in range(count):
-            r = live[lines[i]]
-            rows[i] = r
-            starts[i] = ep.q[r]
-            ends[i] = ep.candidates[r, ep.index[r], branches[i]]
-        hits = _paths_collide(ep, bound, rows, starts, ends)
+        rows, branches = live[lines[:count]], branches[:count]
+        hits = _paths_collide(ep, bound, rows, ep.q[rows], _targets(ep, rows, branches))
         for i in range(count):
             collision[lines[i], branches[i]] = hits[i]
     return collision
