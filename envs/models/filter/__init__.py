@@ -20,7 +20,8 @@ most samples without MuJoCo. Its rooms:
   the containers of the pairs that could matter: a sample at which every pair is provably
   farther than its contact margin (δ, plus ``DISTANCE_TOLERANCE``) is free, exactly as
   ``mj_collision`` would find it; a pair whose inner shapes are closer than its margin
-  (less ``WITNESS_TOLERANCE``) proves a contact MuJoCo's colliders report; any other
+  (less ``WITNESS_TOLERANCE``), or one's inner sphere or capsule as close to the other's
+  cylinder itself, proves a contact MuJoCo's colliders report; any other
   sample goes to ``mj_kinematics`` + ``mj_collision`` on the checker's ``MjData``, called
   from the kernel (:mod:`envs.models.native`). So every verdict and every first colliding
   sample is MuJoCo's. A path's grid samples (t_i = i/n, as in the module docstring of

@@ -2,7 +2,8 @@
 
 A sample is decided by whichever proof holds: bounds that keep every pair farther than
 its margin prove it free (and, along a path, its neighbours within the free step); inner
-shapes of one pair closer than its margin prove it in contact (``layout.inner``); MuJoCo's
+shapes of one pair closer than its margin prove it in contact (``layout.inner``; a
+cylinder is also measured as itself against the other's inner sphere or capsule); MuJoCo's
 ``mj_kinematics`` + ``mj_collision`` decide the rest, called from the kernel. Every kernel
 takes the scene stack's arrays and, per row or path, the scene it belongs to (a filter of
 its own is a stack of one).
@@ -20,7 +21,7 @@ from ikbranch_gym.envs.jit import njit
 
 from .. import native
 from .layout import BOX, CAPSULE, CYLINDER, SPHERE
-from .shapes import _bound_pair, _box_box, _inner_distance, _skewers
+from .shapes import _axis_in_cylinder, _bound_pair, _box_box, _inner_distance, _skewers
 from .tree import _forward, _local_speed, _path_rates, _path_sample, _place_slots, _slot_growth
 
 #: What :func:`_sample_step` returns besides a free step (≥ 0).
@@ -96,7 +97,7 @@ def _sample_step(tree, geometry, qpos, xpos, xmat, wpos, wrot, rates, coarse, ca
             if not witness:
                 return UNDECIDED
             return _witnessed(coarse, survivors, pair_a, pair_b, pair_contact, pair_skewer,
-                              slot_inner, slot_inner_size, wpos, wrot)
+                              slot_inner, slot_inner_size, slot_type, slot_size, wpos, wrot)
         step = _rate_step(gap, rates[k])
         if local is not None and slot_static[b] and step < best:
             dq, growth, speeds = local
@@ -112,11 +113,13 @@ def _sample_step(tree, geometry, qpos, xpos, xmat, wpos, wrot, rates, coarse, ca
 
 @njit(inline="always")
 def _witnessed(coarse, survivors, pair_a, pair_b, pair_contact, pair_skewer, slot_inner,
-               slot_inner_size, wpos, wrot):
+               slot_inner_size, slot_type, slot_size, wpos, wrot):
     """``CONTACT`` if the inner shapes of a pair whose bounding spheres may be within its
     margin (a ``coarse`` row with step −1) are closer than the pair's contact distance
-    (not a capsule skewering a box, which MuJoCo's capsule–box collider misses), else
-    ``UNDECIDED``."""
+    (not a capsule skewering a box, which MuJoCo's capsule–box collider misses), or one's
+    inner sphere or capsule is that close to the other's cylinder itself
+    (``shapes._axis_in_cylinder``: a cylinder's inner shape leaves its rims out), else
+    ``UNDECIDED``. The cylinder pass runs only where no inner pair proved a contact."""
     for row in range(survivors):
         if coarse[row, 1] >= 0.0:
             continue
@@ -133,6 +136,20 @@ def _witnessed(coarse, survivors, pair_a, pair_b, pair_contact, pair_skewer, slo
                 slot_inner[b], _centre(wpos, b), _rotation(wrot, b),
                 _size(slot_inner_size, b))):
             return CONTACT
+    for row in range(survivors):
+        if coarse[row, 1] >= 0.0:
+            continue
+        k = int(coarse[row, 0])
+        limit = pair_contact[k]
+        if limit == -math.inf:
+            continue
+        for side in range(2):
+            a, b = (pair_a[k], pair_b[k]) if side == 0 else (pair_b[k], pair_a[k])
+            ka = slot_inner[a]
+            if slot_type[b] == CYLINDER and (ka == SPHERE or ka == CAPSULE) and _axis_in_cylinder(
+                    ka, _centre(wpos, a), _rotation(wrot, a), _size(slot_inner_size, a),
+                    _centre(wpos, b), _rotation(wrot, b), _size(slot_size, b), limit):
+                return CONTACT
     return UNDECIDED
 
 

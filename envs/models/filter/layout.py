@@ -14,8 +14,9 @@ Beside the container, each geom has an *inner* shape that it holds (:func:`inner
 where it is a sphere, capsule, box, a mesh whose hull is its bounding box, or a plane; the
 capsule inside a cylinder (the square prism inside a disc), the sphere inside an
 ellipsoid. Two inner shapes closer than a pair's margin (less ``WITNESS_TOLERANCE``) prove
-the pair in contact: MuJoCo's colliders report it (``docs/models.md`` has the study of
-MuJoCo's colliders behind this). Two
+the pair in contact, and so does an inner sphere or capsule that close to a cylinder
+itself: MuJoCo's colliders report it (``docs/models.md`` has the study of MuJoCo's
+colliders behind this). Two
 colliders do not: a pair of primitive boxes (which misses some contacts inside the margin
 and reports some outside it) gets no witness, and a primitive capsule–box pair none where
 the capsule's axis passes through the box with both ends outside it (a "skewer", which

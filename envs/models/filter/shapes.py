@@ -6,7 +6,9 @@ bound of the geoms' distance, so a pair proven farther than its margin is free
 (:func:`_bound_pair`). Applied to two *inner* shapes, which the geoms hold, the value is
 at least the geoms' distance, so a pair proven closer than its margin is in contact
 (:func:`_inner_distance`): sphere, capsule, box and half-space pairs are measured exactly;
-two boxes by their edges (:func:`_box_box_distance`).
+two boxes by their edges (:func:`_box_box_distance`). A cylinder is also measured as itself
+against the other's inner sphere or capsule (:func:`_axis_in_cylinder`): its own inner
+shape leaves its rims out.
 """
 
 from __future__ import annotations
@@ -392,6 +394,53 @@ def _segment_cylinder(px, py, pz, qx, qy, qz, c, rot, r, h, floor, enough):
     # Rounding: a tangent evaluated in floating point may sit a few ulps above the
     # function; 1e-9 m covers it many times over.
     return max(_tangents_floor(lo, hi, m1, f1, g1, m2, f2, g2) - 1e-9, quick)
+
+
+@njit
+def _axis_in_cylinder(ka, ca, ra, sa, cb, rb, sb, limit):
+    """Whether the inner sphere or capsule ``a`` (radius ``sa[0]``, axis half-length
+    ``sa[1]``) comes closer than ``limit`` to the solid cylinder ``b`` itself (radius
+    ``sb[0]``, half-height ``sb[1]``), found at a point p of a's axis: dist(p, b) − radius
+    < ``limit``. Each such value is at least the distance of the two shapes (a holds the
+    ball of its radius around every point of its axis), so whatever point shows it proves
+    it. The axis's ends first, then golden-section search along it (the distance from a
+    convex set is convex along a segment) until a point shows it, or the tangents at the
+    bracket's inner points (:func:`_tangents_floor`), or the cheap radial and axial
+    excesses, bound every point's value from below at ``limit`` or more: no point can."""
+    target = limit + sa[0]
+    half = 0.0 if ka == SPHERE else sa[1]
+    e = _capsule_ends(ca, ra, half)
+    ax, ay, az = _to_box(e[0], e[1], e[2], cb, rb)
+    bx, by, bz = _to_box(e[3], e[4], e[5], cb, rb)
+    r, h = sb[0], sb[1]
+    if (_cylinder_gap(ax, ay, az, r, h)[0] < target
+            or _cylinder_gap(bx, by, bz, r, h)[0] < target):
+        return True
+    dx, dy, dz = bx - ax, by - ay, bz - az
+    if _segment_cylinder_floor(ax, ay, az, dx, dy, dz, r, h) >= target:
+        return False
+    lo, hi = 0.0, 1.0
+    ratio = 0.6180339887498949
+    m1, m2 = hi - ratio * (hi - lo), lo + ratio * (hi - lo)
+    f1, g1 = _cylinder_slope(ax + m1 * dx, ay + m1 * dy, az + m1 * dz, dx, dy, dz, r, h)
+    f2, g2 = _cylinder_slope(ax + m2 * dx, ay + m2 * dy, az + m2 * dz, dx, dy, dz, r, h)
+    # 0.618^40 of the axis: nanometres on any arm.
+    for _ in range(40):
+        if f1 < target or f2 < target:
+            return True
+        if _tangents_floor(lo, hi, m1, f1, g1, m2, f2, g2) >= target:
+            return False
+        if f1 <= f2:
+            hi, m2, f2, g2 = m2, m1, f1, g1
+            m1 = hi - ratio * (hi - lo)
+            f1, g1 = _cylinder_slope(ax + m1 * dx, ay + m1 * dy, az + m1 * dz, dx, dy, dz,
+                                     r, h)
+        else:
+            lo, m1, f1, g1 = m1, m2, f2, g2
+            m2 = lo + ratio * (hi - lo)
+            f2, g2 = _cylinder_slope(ax + m2 * dx, ay + m2 * dy, az + m2 * dz, dx, dy, dz,
+                                     r, h)
+    return f1 < target or f2 < target
 
 
 @njit

@@ -252,3 +252,148 @@ def test_segment_cylinder_bound_is_below_and_within_a_micrometre_of_the_distance
                                            brute - 1e-4, math.inf)
         assert floored <= brute + 1e-12, trial
     assert checked > 300
+
+
+#: Partners of the cylinder witness at the margin's edge: name -> (MuJoCo type, size), the
+#: cylinder the partner meets (radius, half-height). The first four are UR5e-v3's pairs
+#: that the inner shapes alone left to MuJoCo most often (forearm–flange; shoulder
+#: housing, upper arm and elbow housing against the clutter's cylinders).
+_AXIS_CASES = {
+    "forearm–flange": ("capsule", (0.0409, 0.145), (0.0327, 0.0349)),
+    "housing–flat cylinder": ("capsule", (0.0654, 0.1075), (0.1474, 0.05)),
+    "upper arm–cylinder r = h": ("capsule", (0.049, 0.2125), (0.05, 0.05)),
+    "elbow housing–cylinder": ("capsule", (0.0531, 0.0666), (0.0767, 0.05)),
+    "sphere–tall cylinder": ("sphere", (0.04,), (0.03, 0.2)),
+    "cylinder–cylinder": ("cylinder", (0.03, 0.09), (0.06, 0.04)),
+    "ellipsoid–cylinder": ("ellipsoid", (0.03, 0.05, 0.07), (0.05, 0.12)),
+}
+
+
+def _axis_gap(ends: np.ndarray, r: float, h: float) -> tuple[float, np.ndarray]:
+    """The least distance of the segment ``ends`` (cylinder frame) from the solid cylinder,
+    and the point of the segment where it is least: dense, then refined by scipy (the
+    distance is convex along the segment)."""
+    from scipy.optimize import minimize_scalar
+
+    def at(t):
+        return ends[0] + t * (ends[1] - ends[0])
+
+    t = np.linspace(0.0, 1.0, 2001)
+    values = _point_cylinder(at(t[:, None]), r, h)
+    i = int(values.argmin())
+    lo, hi = t[max(i - 1, 0)], t[min(i + 1, len(t) - 1)]
+    best = minimize_scalar(lambda s: _point_cylinder(at(s)[None], r, h)[0], bounds=(lo, hi),
+                           method="bounded", options={"xatol": 1e-13})
+    s = float(best.x) if best.fun < values[i] else float(t[i])
+    return float(_point_cylinder(at(s)[None], r, h)[0]), at(s)
+
+
+@pytest.mark.parametrize("case", list(_AXIS_CASES))
+def test_a_partners_axis_near_a_cylinder_is_mujocos_contact_at_the_margins_edge(case):
+    # The cylinder witness (shapes._axis_in_cylinder, kernels._witnessed): the partner's
+    # inner sphere or capsule, measured against the cylinder itself, proves a contact
+    # wherever it comes closer than the margin less the tolerance. Placed so that its
+    # exact value sits 5 µm inside that limit, MuJoCo reports the contact (multi-CCD on,
+    # as the checker runs it, and off); 15 µm outside the margin, the witness does not
+    # fire and, where the inner shape is the partner itself, MuJoCo reports none (the
+    # placements do sit at MuJoCo's edge). Half the
+    # placements lie across a flat end, nearly parallel to it.
+    from ikbranch_gym.envs.models.filter.layout import WITNESS_TOLERANCE
+
+    shape, size, (r, h) = _AXIS_CASES[case]
+    spec = mujoco.MjSpec()
+    spec.compiler.degree = False
+    cylinder = spec.worldbody.add_body().add_geom()
+    cylinder.name, cylinder.type, cylinder.size = "cylinder", _SHAPES["cylinder"], [r, h, 0.0]
+    partner_body = spec.worldbody.add_body()
+    partner_body.name = "partner"
+    partner_body.add_freejoint()
+    partner = partner_body.add_geom()
+    partner.name, partner.type = "partner", _SHAPES[shape]
+    partner.size = [*size, 0.0, 0.0][:3]
+    for geom in (cylinder, partner):
+        geom.margin, geom.gap = 0.005, 0.0
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    kind, inner_size = layout.inner(model, model.geom("partner").id)
+    assert kind in (layout.SPHERE, layout.CAPSULE)
+    radius, half = inner_size[0], (inner_size[1] if kind == layout.CAPSULE else 0.0)
+    exact = shape in ("capsule", "sphere")  # the inner shape is the partner itself
+    limit = 0.01 - WITNESS_TOLERANCE
+    rng = np.random.default_rng(list(_AXIS_CASES).index(case))
+    proved = 0
+    for trial in range(150):
+        if trial % 2:  # across a flat end, the axis within ~6° of it
+            phi = rng.uniform(0.0, 2.0 * np.pi)
+            axis = np.array([math.cos(phi), math.sin(phi), rng.uniform(-0.1, 0.1)])
+            centre = np.r_[rng.uniform(-r, r, 2), rng.choice([-1.0, 1.0]) * (h + radius)]
+        else:
+            axis, centre = rng.normal(size=3), rng.normal(scale=0.06, size=3)
+        axis /= np.linalg.norm(axis)
+        rotation = np.linalg.qr(np.c_[axis, rng.normal(size=(3, 2))])[0]
+        rotation = rotation[:, [1, 2, 0]] * np.sign(np.linalg.det(rotation))  # z along axis
+        for target, inside in ((0.01 - 1.5e-5, True), (0.01 + 1.5e-5, False)):
+            c = centre.copy()
+            for _ in range(8):  # along the normal at the nearest point, until U = target
+                ends = np.array([c - half * rotation[:, 2], c + half * rotation[:, 2]])
+                gap, point = _axis_gap(ends, r, h)
+                if gap <= 0.0:
+                    break
+                rho = math.hypot(point[0], point[1])
+                near = np.r_[point[:2] * min(1.0, r / rho), np.clip(point[2], -h, h)]
+                normal = (point - near) / np.linalg.norm(point - near)
+                c = c + (target + radius - gap) * normal
+            ends = np.array([c - half * rotation[:, 2], c + half * rotation[:, 2]])
+            if abs(_axis_gap(ends, r, h)[0] - radius - target) > 1e-9:
+                continue  # the axis ended inside (a deep placement): not at the edge
+            quat = np.zeros(4)
+            mujoco.mju_mat2Quat(quat, rotation.ravel())
+            data.qpos[:3], data.qpos[3:] = c, quat
+            mujoco.mj_kinematics(model, data)
+            frames = [(tuple(data.geom_xpos[g]), tuple(data.geom_xmat[g]))
+                      for g in (model.geom("partner").id, model.geom("cylinder").id)]
+            witness = shapes._axis_in_cylinder(kind, *frames[0], tuple(inner_size),
+                                               *frames[1], (r, h, 0.0), limit)
+            assert witness == inside, (case, trial, target)
+            if not (inside or exact):
+                continue  # the partner itself may reach further than its inner shape
+            for multi in (True, False):
+                model.opt.disableflags = 0 if multi else int(mujoco.mjtDisableBit.mjDSBL_MULTICCD)
+                mujoco.mj_collision(model, data)
+                assert (data.ncon > 0) == inside, (case, trial, target, multi)
+            proved += inside
+    assert proved > 80
+
+
+def test_axis_in_cylinder_is_the_least_distance_along_the_axis_below_the_limit():
+    # Against 20,001 points along the axis (at most |pq| / 40,000 above the exact least
+    # distance): the witness fires exactly where that least distance less the radius is
+    # below the limit, away from a band of that sampling's error around it. Spheres
+    # (a point axis), axes over the rims, across the flat ends, beside the side, through
+    # the cylinder.
+    rng = np.random.default_rng(8)
+    t = np.linspace(0.0, 1.0, 20_001)[:, None]
+    fired = quiet = 0
+    for trial in range(600):
+        r, h = rng.uniform(0.02, 0.3, size=2)
+        centre = rng.normal(size=3)
+        rot, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        radius, half = rng.uniform(0.01, 0.1), (0.0 if trial % 5 == 0 else rng.uniform(0.0, 0.3))
+        axis = rng.normal(size=3)
+        axis /= np.linalg.norm(axis)
+        own, _ = np.linalg.qr(np.c_[axis, rng.normal(size=(3, 2))])
+        own = own[:, [1, 2, 0]] * np.sign(np.linalg.det(own))  # z along the axis
+        middle = centre + rot @ rng.normal(scale=r + h + radius, size=3)
+        ends = np.array([middle - half * own[:, 2], middle + half * own[:, 2]])
+        local = (ends - centre) @ rot
+        least = _point_cylinder(local[0] + t * (local[1] - local[0]), r, h).min() - radius
+        error = 2 * half / 40_000 + 1e-9
+        limit = least + rng.choice([-1.0, 1.0]) * rng.uniform(2 * error, 0.05)
+        kind = layout.SPHERE if half == 0.0 else layout.CAPSULE
+        witness = shapes._axis_in_cylinder(kind, tuple(middle), tuple(own.ravel()),
+                                           (radius, half, 0.0), tuple(centre),
+                                           tuple(rot.ravel()), (r, h, 0.0), limit)
+        assert witness == (least < limit), trial
+        fired += witness
+        quiet += not witness
+    assert fired > 200 and quiet > 200
