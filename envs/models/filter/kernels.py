@@ -30,7 +30,7 @@ UNDECIDED, CONTACT = -1.0, -2.0
 BY_BOUNDS, BY_WITNESS, BY_MUJOCO = 0, 1, 2
 #: The filter's counters, in order: samples bounded, MuJoCo checks, exact pair bounds
 #: computed, MuJoCo checks that found no contact (samples free that the bounds could not
-#: prove free), samples whose inner shapes proved a contact.
+#: prove free), samples a witness (:func:`_witnessed`) proved in contact.
 COUNTERS = ("bounded", "mujoco", "pair bounds", "mujoco found free", "witnessed")
 
 
@@ -39,8 +39,8 @@ def _sample_step(tree, geometry, qpos, xpos, xmat, wpos, wrot, rates, coarse, ca
                  motion, local, witness, active):
     """The free step around the sample ``qpos``: the largest s ≤ ``cap`` (in path
     parameter t) such that every pair stays farther than its margin for |t − t_i| ≤ s, from
-    lower bounds only; ``CONTACT`` if a pair's inner shapes prove it in contact (only
-    with ``witness``), ``UNDECIDED`` if neither proof holds (MuJoCo must decide).
+    lower bounds only; ``CONTACT`` if a witness proves a pair in contact (:func:`_witnessed`,
+    only with ``witness``), ``UNDECIDED`` if neither proof holds (MuJoCo must decide).
 
     Bounding spheres first (``coarse``: their step per pair); exact container bounds only
     for pairs whose sphere step is below the best step found so far, the nearest first.
@@ -355,7 +355,7 @@ def check_configurations(tree, geometry, motion, exact, scenes, rows, need, verd
     """``out[i]`` for configuration ``rows[i]`` (its leading qpos entries; the rest stay at
     ``qpos0``) in scene ``scenes[i]`` of the stack (one entry: every row's scene): 0 where
     the bounds prove it free, else MuJoCo's contact count, or with ``verdict`` 1 where
-    inner shapes prove a contact; ``how[i]``: ``BY_BOUNDS``, ``BY_WITNESS`` or
+    a witness proves a contact; ``how[i]``: ``BY_BOUNDS``, ``BY_WITNESS`` or
     ``BY_MUJOCO``. ``need`` > 0: rows are checked in order until ``need`` free ones are
     found; the rows after are not checked (``out`` and ``how`` −1). ``counters``:
     :data:`COUNTERS`, added to."""
@@ -404,7 +404,7 @@ def check_paths(tree, geometry, motion, exact, scenes, start_rows, end_rows, ste
 
     Samples are visited in raked order: the middle of every unresolved interval of grid
     indices, breadth first; a sample the bounds prove free clears every index within its
-    free step on both sides, a sample whose inner shapes prove a contact is in contact,
+    free step on both sides, a sample a witness proves in contact is in contact,
     any other is checked by MuJoCo."""
     xpos, xmat, wpos, wrot, rates, coarse = _work(tree, geometry)
     kinematic = tree[:12]

@@ -46,6 +46,10 @@ DISTANCE_TOLERANCE = 1e-6
 #: contact margin less this is in contact as MuJoCo reports contacts.
 WITNESS_TOLERANCE = 1e-5
 
+#: MuJoCo's default iterations and tolerance of its convex collider: a model whose collider
+#: stops sooner gets no witnesses.
+CCD_ITERATIONS, CCD_TOLERANCE = 35, 1e-6
+
 #: A pair (kind) whose static partner lies beyond the moving geom's reach: skipped.
 OUT_OF_REACH = 3
 #: Container shapes (codes shared with the kernels).
@@ -589,11 +593,15 @@ def _check_supported(model: mujoco.MjModel) -> None:
 
 def _witnessed(model: mujoco.MjModel, geoms: np.ndarray, pair_a: np.ndarray,
                pair_b: np.ndarray, slot_inner: np.ndarray) -> np.ndarray:
-    """(P,) bool: a pair whose inner shapes may prove a contact: both have one, their
+    """(P,) bool: a pair that a witness may prove in contact (its inner shapes, or one's
+    inner sphere or capsule against the other's cylinder): both have an inner shape, their
     collider reports every contact inside the margin (not two primitive boxes:
-    google-deepmind/mujoco#2471, docs/models.md), and contacts are enabled at all."""
+    google-deepmind/mujoco#2471, docs/models.md), contacts are enabled at all, and the
+    convex collider runs at least MuJoCo's default iterations and tolerance (the settings
+    the witnesses were studied with: with fewer iterations it misses contacts they prove)."""
     off = mujoco.mjtDisableBit.mjDSBL_CONTACT | mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
-    if model.opt.disableflags & off:
+    if (model.opt.disableflags & off or model.opt.ccd_iterations < CCD_ITERATIONS
+            or model.opt.ccd_tolerance > CCD_TOLERANCE):
         return np.zeros(len(pair_a), dtype=bool)
     kind = model.geom_type[geoms]
     boxes = (kind[pair_a] == _GEOM_BOX) & (kind[pair_b] == _GEOM_BOX)

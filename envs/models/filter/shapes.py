@@ -350,26 +350,16 @@ def _tangents_floor(lo, hi, t1, f1, g1, t2, f2, g2):
     return f1 + g1 * (t - t1)
 
 
-@njit
-def _segment_cylinder(px, py, pz, qx, qy, qz, c, rot, r, h, floor, enough):
-    """Lower bound on the distance of the segment pq from a solid cylinder (centre ``c``,
-    rotation ``rot``, radius ``r``, half-height ``h``), within about 1e-7 of it unless it
-    stops early: once the bound reaches ``enough`` (no caller needs more) or once the
-    least distance seen is at most ``floor`` (no bound from here can beat the caller's).
-
-    First the cheap radial and axial excesses (:func:`_segment_cylinder_floor`). Then:
-    the distance from a convex set is convex along the segment and differentiable where
-    it is positive, so every tangent line lies below it; golden-section search keeps the
-    minimiser bracketed, and the tangents at the bracket's two inner points bound the
-    minimum from below over the bracket, until that bound is within 1e-7 of the least
-    value seen.
-    """
-    ax, ay, az = _to_box(px, py, pz, c, rot)
-    bx, by, bz = _to_box(qx, qy, qz, c, rot)
-    dx, dy, dz = bx - ax, by - ay, bz - az
-    quick = _segment_cylinder_floor(ax, ay, az, dx, dy, dz, r, h) - 1e-9
-    if quick >= enough:
-        return quick
+@njit(inline="always")
+def _cylinder_search(ax, ay, az, dx, dy, dz, r, h, below, above, precision):
+    """Golden-section search for the least distance of the segment a + t·d, 0 ≤ t ≤ 1
+    (cylinder frame) from the solid cylinder: (bound, seen), a lower bound on it over the
+    whole segment and the least distance seen at a point of it. The distance from a convex
+    set is convex along the segment and differentiable where it is positive, so every
+    tangent line lies below it; the search keeps the minimiser bracketed, and the tangents
+    at the bracket's two inner points bound the minimum from below over the bracket. It
+    stops once the two are within ``precision``, the bound reaches ``above`` or the least
+    value seen is at most ``below`` (no caller needs more)."""
     lo, hi = 0.0, 1.0
     ratio = 0.6180339887498949
     m1, m2 = hi - ratio * (hi - lo), lo + ratio * (hi - lo)
@@ -379,8 +369,8 @@ def _segment_cylinder(px, py, pz, qx, qy, qz, c, rot, r, h, floor, enough):
     for _ in range(80):
         bound = _tangents_floor(lo, hi, m1, f1, g1, m2, f2, g2)
         seen = min(f1, f2)
-        if seen - bound <= 1e-7 or bound >= enough or seen <= floor:
-            break
+        if seen - bound <= precision or bound >= above or seen <= below:
+            return bound, seen
         if f1 <= f2:
             hi, m2, f2, g2 = m2, m1, f1, g1
             m1 = hi - ratio * (hi - lo)
@@ -391,22 +381,40 @@ def _segment_cylinder(px, py, pz, qx, qy, qz, c, rot, r, h, floor, enough):
             m2 = lo + ratio * (hi - lo)
             f2, g2 = _cylinder_slope(ax + m2 * dx, ay + m2 * dy, az + m2 * dz, dx, dy, dz,
                                      r, h)
+    return _tangents_floor(lo, hi, m1, f1, g1, m2, f2, g2), min(f1, f2)
+
+
+@njit
+def _segment_cylinder(px, py, pz, qx, qy, qz, c, rot, r, h, floor, enough):
+    """Lower bound on the distance of the segment pq from a solid cylinder (centre ``c``,
+    rotation ``rot``, radius ``r``, half-height ``h``), within about 1e-7 of it unless it
+    stops early: once the bound reaches ``enough`` (no caller needs more) or once the
+    least distance seen is at most ``floor`` (no bound from here can beat the caller's).
+    First the cheap radial and axial excesses (:func:`_segment_cylinder_floor`), then the
+    tangents of :func:`_cylinder_search`."""
+    ax, ay, az = _to_box(px, py, pz, c, rot)
+    bx, by, bz = _to_box(qx, qy, qz, c, rot)
+    dx, dy, dz = bx - ax, by - ay, bz - az
+    quick = _segment_cylinder_floor(ax, ay, az, dx, dy, dz, r, h) - 1e-9
+    if quick >= enough:
+        return quick
+    bound, _ = _cylinder_search(ax, ay, az, dx, dy, dz, r, h, floor, enough, 1e-7)
     # Rounding: a tangent evaluated in floating point may sit a few ulps above the
     # function; 1e-9 m covers it many times over.
-    return max(_tangents_floor(lo, hi, m1, f1, g1, m2, f2, g2) - 1e-9, quick)
+    return max(bound - 1e-9, quick)
 
 
 @njit
 def _axis_in_cylinder(ka, ca, ra, sa, cb, rb, sb, limit):
     """Whether the inner sphere or capsule ``a`` (radius ``sa[0]``, axis half-length
     ``sa[1]``) comes closer than ``limit`` to the solid cylinder ``b`` itself (radius
-    ``sb[0]``, half-height ``sb[1]``), found at a point p of a's axis: dist(p, b) − radius
+    ``sb[0]``, half-height ``sb[1]``), shown at a point p of a's axis: dist(p, b) − radius
     < ``limit``. Each such value is at least the distance of the two shapes (a holds the
     ball of its radius around every point of its axis), so whatever point shows it proves
-    it. The axis's ends first, then golden-section search along it (the distance from a
-    convex set is convex along a segment) until a point shows it, or the tangents at the
-    bracket's inner points (:func:`_tangents_floor`), or the cheap radial and axial
-    excesses, bound every point's value from below at ``limit`` or more: no point can."""
+    it. The axis's ends first; then, unless the cheap radial and axial excesses
+    (:func:`_segment_cylinder_floor`) already show that no point can, the search of
+    :func:`_cylinder_search` until a point shows it or its tangents show that none can
+    (to the last bits: the witness is sharp at ``limit``)."""
     target = limit + sa[0]
     half = 0.0 if ka == SPHERE else sa[1]
     e = _capsule_ends(ca, ra, half)
@@ -419,28 +427,8 @@ def _axis_in_cylinder(ka, ca, ra, sa, cb, rb, sb, limit):
     dx, dy, dz = bx - ax, by - ay, bz - az
     if _segment_cylinder_floor(ax, ay, az, dx, dy, dz, r, h) >= target:
         return False
-    lo, hi = 0.0, 1.0
-    ratio = 0.6180339887498949
-    m1, m2 = hi - ratio * (hi - lo), lo + ratio * (hi - lo)
-    f1, g1 = _cylinder_slope(ax + m1 * dx, ay + m1 * dy, az + m1 * dz, dx, dy, dz, r, h)
-    f2, g2 = _cylinder_slope(ax + m2 * dx, ay + m2 * dy, az + m2 * dz, dx, dy, dz, r, h)
-    # 0.618^40 of the axis: nanometres on any arm.
-    for _ in range(40):
-        if f1 < target or f2 < target:
-            return True
-        if _tangents_floor(lo, hi, m1, f1, g1, m2, f2, g2) >= target:
-            return False
-        if f1 <= f2:
-            hi, m2, f2, g2 = m2, m1, f1, g1
-            m1 = hi - ratio * (hi - lo)
-            f1, g1 = _cylinder_slope(ax + m1 * dx, ay + m1 * dy, az + m1 * dz, dx, dy, dz,
-                                     r, h)
-        else:
-            lo, m1, f1, g1 = m1, m2, f2, g2
-            m2 = lo + ratio * (hi - lo)
-            f2, g2 = _cylinder_slope(ax + m2 * dx, ay + m2 * dy, az + m2 * dz, dx, dy, dz,
-                                     r, h)
-    return f1 < target or f2 < target
+    _, seen = _cylinder_search(ax, ay, az, dx, dy, dz, r, h, target, target, 0.0)
+    return seen < target
 
 
 @njit

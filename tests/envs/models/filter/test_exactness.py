@@ -233,3 +233,49 @@ def test_a_stack_checks_every_scene_as_its_own_filter():
             np.testing.assert_array_equal(first[mine][hit] / steps[mine][hit], fraction[hit])
             np.testing.assert_array_equal(verdicts[mine], references[i].collides(q0[mine]))
             assert 0.05 < expected.mean() < 0.95
+
+
+def test_witnessed_configurations_are_mujocos_contacts_and_cylinders_prove_their_own():
+    # Through the kernel (kernels._witnessed): every configuration a witness decided is
+    # one MuJoCo finds in contact, and on UR5e in clutter (the flange and the clutter's
+    # posts are cylinders) many of them no pair of inner shapes could prove: the cylinder
+    # pass proved them, each side taking the other's cylinder as itself.
+    from ikbranch_gym.envs.models.filter import kernels, shapes
+    from ikbranch_gym.envs.models.filter import tree as kinematics
+
+    arm = make_arm("ur5e")
+    checker = _checker("ur5e", "random_clutter", "compiled", seed=3)
+    model, data = checker.model, mujoco.MjData(checker.model)
+    scene = checker._filter.scene
+    rng = np.random.default_rng(25)
+    q = rng.uniform(arm.joint_limits[:, 0], arm.joint_limits[:, 1], size=(3000, arm.dof))
+    _, how = checker._filter.collide_how(q)
+    geometry = kernels._scene(scene.geometry, 0)
+    (slot_body, slot_static, slot_pos, slot_rot, _, _, _, pair_a, pair_b, _, _, _, _, _, _,
+     slot_inner, slot_inner_size, pair_contact, pair_skewer) = geometry
+    xpos, xmat, wpos, wrot, _, _ = kernels._work(scene.tree, scene.geometry)
+    kernels._enter(geometry, wpos, wrot)
+    cylinder_only = 0
+    for row in np.flatnonzero(how == kernels.BY_WITNESS):
+        qpos = model.qpos0.copy()
+        qpos[: arm.dof] = q[row]
+        data.qpos[:] = qpos
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_collision(model, data)
+        assert data.ncon > 0, row
+        kinematics._forward(*scene.tree[:12], qpos, xpos, xmat)
+        kinematics._place_slots(slot_body, slot_static, slot_pos, slot_rot, xpos, xmat, wpos,
+                                wrot)
+        inner_pair = False
+        for k in np.flatnonzero(np.isfinite(pair_contact)):
+            a, b = pair_a[k], pair_b[k]
+            args = (slot_inner[a], kernels._centre(wpos, a), kernels._rotation(wrot, a),
+                    kernels._size(slot_inner_size, a), slot_inner[b], kernels._centre(wpos, b),
+                    kernels._rotation(wrot, b), kernels._size(slot_inner_size, b))
+            if shapes._inner_distance(*args) < pair_contact[k] and not (
+                    pair_skewer[k] and shapes._skewers(*args)):
+                inner_pair = True
+                break
+        cylinder_only += not inner_pair
+    assert (how == kernels.BY_WITNESS).sum() > 500
+    assert cylinder_only > 20

@@ -140,6 +140,26 @@ def test_unsupported_models_are_refused():
 
 
 
+def test_witnesses_only_where_mujocos_convex_collider_runs_its_default_course():
+    # The witnesses were studied with MuJoCo's default CCD iterations and tolerance; with
+    # fewer iterations its convex collider misses contacts they prove, so such a model
+    # gets none (MuJoCo decides every contact), and a stricter one keeps them.
+    arm = make_arm("ur5e")
+    model = build_model("ur5e", "random_clutter")
+    pairs = candidate_pairs(model)
+
+    def witnessed(iterations: int, tolerance: float) -> int:
+        model.opt.ccd_iterations, model.opt.ccd_tolerance = iterations, tolerance
+        scene = layout.compile_scene(model, arm.dof, pairs)
+        return int(np.isfinite(scene.pair_contact).sum())
+
+    default = witnessed(layout.CCD_ITERATIONS, layout.CCD_TOLERANCE)
+    assert default > 50
+    assert witnessed(100, 1e-8) == default
+    assert witnessed(layout.CCD_ITERATIONS - 1, layout.CCD_TOLERANCE) == 0
+    assert witnessed(layout.CCD_ITERATIONS, 10 * layout.CCD_TOLERANCE) == 0
+
+
 def test_quaternion_matrices_are_mujocos():
     rng = np.random.default_rng(8)
     quats = rng.normal(size=(2000, 4))

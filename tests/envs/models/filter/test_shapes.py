@@ -288,18 +288,10 @@ def _axis_gap(ends: np.ndarray, r: float, h: float) -> tuple[float, np.ndarray]:
     return float(_point_cylinder(at(s)[None], r, h)[0]), at(s)
 
 
-@pytest.mark.parametrize("case", list(_AXIS_CASES))
-def test_a_partners_axis_near_a_cylinder_is_mujocos_contact_at_the_margins_edge(case):
-    # The cylinder witness (shapes._axis_in_cylinder, kernels._witnessed): the partner's
-    # inner sphere or capsule, measured against the cylinder itself, proves a contact
-    # wherever it comes closer than the margin less the tolerance. Placed so that its
-    # exact value sits 5 µm inside that limit, MuJoCo reports the contact (multi-CCD on,
-    # as the checker runs it, and off); 15 µm outside the margin, the witness does not
-    # fire and, where the inner shape is the partner itself, MuJoCo reports none (the
-    # placements do sit at MuJoCo's edge). Half the
-    # placements lie across a flat end, nearly parallel to it.
-    from ikbranch_gym.envs.models.filter.layout import WITNESS_TOLERANCE
-
+def _axis_pair(case: str):
+    """The model of a case of ``_AXIS_CASES``: the cylinder fixed at the origin, the partner
+    on a free joint, margins 0.005 (a pair margin of 0.01); with its ``MjData``, the
+    partner's inner kind and size, and the cylinder's (radius, half-height)."""
     shape, size, (r, h) = _AXIS_CASES[case]
     spec = mujoco.MjSpec()
     spec.compiler.degree = False
@@ -314,12 +306,55 @@ def test_a_partners_axis_near_a_cylinder_is_mujocos_contact_at_the_margins_edge(
     for geom in (cylinder, partner):
         geom.margin, geom.gap = 0.005, 0.0
     model = spec.compile()
-    data = mujoco.MjData(model)
     kind, inner_size = layout.inner(model, model.geom("partner").id)
     assert kind in (layout.SPHERE, layout.CAPSULE)
+    return model, mujoco.MjData(model), kind, inner_size, (r, h)
+
+
+def _axis_verdicts(model, data, kind, inner_size, r, h, centre, rotation, limit):
+    """(the witness, MuJoCo's verdict with multi-CCD on, off) for the partner placed at
+    ``centre`` with ``rotation``."""
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, rotation.ravel())
+    data.qpos[:3], data.qpos[3:] = centre, quat
+    mujoco.mj_kinematics(model, data)
+    frames = [(tuple(data.geom_xpos[g]), tuple(data.geom_xmat[g]))
+              for g in (model.geom("partner").id, model.geom("cylinder").id)]
+    witness = shapes._axis_in_cylinder(kind, *frames[0], tuple(inner_size), *frames[1],
+                                       (r, h, 0.0), limit)
+    verdicts = []
+    for multi in (True, False):
+        model.opt.disableflags = 0 if multi else int(mujoco.mjtDisableBit.mjDSBL_MULTICCD)
+        mujoco.mj_collision(model, data)
+        verdicts.append(data.ncon > 0)
+    model.opt.disableflags = 0
+    return witness, *verdicts
+
+
+def _axis_rotation(axis: np.ndarray, rng) -> np.ndarray:
+    """A rotation whose z column is ``axis``."""
+    rotation = np.linalg.qr(np.c_[axis, rng.normal(size=(3, 2))])[0]
+    return rotation[:, [1, 2, 0]] * np.sign(np.linalg.det(rotation))
+
+
+@pytest.mark.parametrize("case", list(_AXIS_CASES))
+def test_a_partners_axis_near_a_cylinder_is_mujocos_contact_at_the_witness_limit(case):
+    # The cylinder witness (shapes._axis_in_cylinder, kernels._witnessed): the partner's
+    # inner sphere or capsule, measured against the cylinder itself, proves a contact
+    # wherever it comes closer than the margin less the tolerance. Placed so that its
+    # exact value sits 10 nm inside that limit, the witness fires and MuJoCo reports the
+    # contact (multi-CCD on, as the checker runs it, and off); 10 nm outside, it does not
+    # fire; 15 µm outside the margin, where the inner shape is the partner itself, MuJoCo
+    # reports no contact either (the placements sit at MuJoCo's edge). Half the
+    # placements lie across a flat end, nearly parallel to it.
+    from ikbranch_gym.envs.models.filter.layout import WITNESS_TOLERANCE
+
+    model, data, kind, inner_size, (r, h) = _axis_pair(case)
     radius, half = inner_size[0], (inner_size[1] if kind == layout.CAPSULE else 0.0)
-    exact = shape in ("capsule", "sphere")  # the inner shape is the partner itself
+    exact = _AXIS_CASES[case][0] in ("capsule", "sphere")  # the inner shape is the partner
     limit = 0.01 - WITNESS_TOLERANCE
+    targets = ((limit - 1e-8, True, True), (limit + 1e-8, False, True if exact else None),
+               (0.01 + 1.5e-5, False, False if exact else None))
     rng = np.random.default_rng(list(_AXIS_CASES).index(case))
     proved = 0
     for trial in range(150):
@@ -329,10 +364,8 @@ def test_a_partners_axis_near_a_cylinder_is_mujocos_contact_at_the_margins_edge(
             centre = np.r_[rng.uniform(-r, r, 2), rng.choice([-1.0, 1.0]) * (h + radius)]
         else:
             axis, centre = rng.normal(size=3), rng.normal(scale=0.06, size=3)
-        axis /= np.linalg.norm(axis)
-        rotation = np.linalg.qr(np.c_[axis, rng.normal(size=(3, 2))])[0]
-        rotation = rotation[:, [1, 2, 0]] * np.sign(np.linalg.det(rotation))  # z along axis
-        for target, inside in ((0.01 - 1.5e-5, True), (0.01 + 1.5e-5, False)):
+        rotation = _axis_rotation(axis / np.linalg.norm(axis), rng)
+        for target, fires, reported in targets:
             c = centre.copy()
             for _ in range(8):  # along the normal at the nearest point, until U = target
                 ends = np.array([c - half * rotation[:, 2], c + half * rotation[:, 2]])
@@ -344,25 +377,38 @@ def test_a_partners_axis_near_a_cylinder_is_mujocos_contact_at_the_margins_edge(
                 normal = (point - near) / np.linalg.norm(point - near)
                 c = c + (target + radius - gap) * normal
             ends = np.array([c - half * rotation[:, 2], c + half * rotation[:, 2]])
-            if abs(_axis_gap(ends, r, h)[0] - radius - target) > 1e-9:
+            if abs(_axis_gap(ends, r, h)[0] - radius - target) > 1e-10:
                 continue  # the axis ended inside (a deep placement): not at the edge
-            quat = np.zeros(4)
-            mujoco.mju_mat2Quat(quat, rotation.ravel())
-            data.qpos[:3], data.qpos[3:] = c, quat
-            mujoco.mj_kinematics(model, data)
-            frames = [(tuple(data.geom_xpos[g]), tuple(data.geom_xmat[g]))
-                      for g in (model.geom("partner").id, model.geom("cylinder").id)]
-            witness = shapes._axis_in_cylinder(kind, *frames[0], tuple(inner_size),
-                                               *frames[1], (r, h, 0.0), limit)
-            assert witness == inside, (case, trial, target)
-            if not (inside or exact):
-                continue  # the partner itself may reach further than its inner shape
-            for multi in (True, False):
-                model.opt.disableflags = 0 if multi else int(mujoco.mjtDisableBit.mjDSBL_MULTICCD)
-                mujoco.mj_collision(model, data)
-                assert (data.ncon > 0) == inside, (case, trial, target, multi)
-            proved += inside
+            witness, *mujocos = _axis_verdicts(model, data, kind, inner_size, r, h, c,
+                                               rotation, limit)
+            assert witness == fires, (case, trial, target)
+            if reported is not None:
+                assert mujocos == [reported, reported], (case, trial, target)
+            proved += fires
     assert proved > 80
+
+
+@pytest.mark.parametrize("case", list(_AXIS_CASES))
+def test_a_partners_axis_deep_in_a_cylinder_is_mujocos_contact(case):
+    # Most contacts the cylinder witness proves are deep ones at the rims, which MuJoCo's
+    # convex collider settles by its penetration search: wherever the witness fires on a
+    # random placement around the cylinder, MuJoCo reports the contact.
+    from ikbranch_gym.envs.models.filter.layout import WITNESS_TOLERANCE
+
+    model, data, kind, inner_size, (r, h) = _axis_pair(case)
+    rng = np.random.default_rng(100 + list(_AXIS_CASES).index(case))
+    fired = 0
+    for trial in range(600):
+        axis = rng.normal(size=3)
+        rotation = _axis_rotation(axis / np.linalg.norm(axis), rng)
+        reach = inner_size[0] + (inner_size[1] if kind == layout.CAPSULE else 0.0)
+        centre = rng.uniform(-1.0, 1.0, size=3) * (r + reach, r + reach, h + reach)
+        witness, *mujocos = _axis_verdicts(model, data, kind, inner_size, r, h, centre,
+                                           rotation, 0.01 - WITNESS_TOLERANCE)
+        if witness:
+            assert mujocos == [True, True], (case, trial)
+            fired += 1
+    assert fired > 60
 
 
 def test_axis_in_cylinder_is_the_least_distance_along_the_axis_below_the_limit():
