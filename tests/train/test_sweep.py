@@ -456,3 +456,25 @@ def test_a_sweeps_runs_land_under_the_working_directory_by_default():
 
     args = sweep.parser().parse_args(["--env", "IKBranch/ToolTransfer-v1"])
     assert args.root == Path("runs") / "sweep" and not args.root.is_absolute()
+
+
+def test_learning_beats_planning_only_counts_industrial_arms_and_the_lower_bound():
+    # ToolTransfer's arm is one of the papers': its row never meets the goal, however high.
+    # On the IRB 2600 a point above 0.5 whose interval reaches below it does not either.
+    from ikbranch_gym.train.publish import goal_lines
+
+    def record(improvement):
+        row = {"success": [1.0] * 3, "gap": [0.0] * 3, "decision_ms": 0.0,
+               "improvement": {"paper_rule": [0.9, 0.8, 1.0], "receding_dp": improvement}}
+        return {"policies": {"paper_rule": {}, "receding_dp": {}, "bc_maskable_ppo": row}}
+
+    def verdict(records):
+        return next(line for line in goal_lines(records) if "beats receding_dp" in line)
+
+    papers = {"IKBranch/ToolTransfer-v1": record([0.9, 0.85, 0.95])}
+    assert "beats receding_dp" not in " ".join(goal_lines(papers))
+    below = {**papers, "IKBranch/IRB2600Screwing-v1": record([0.55, 0.49, 0.6])}
+    assert verdict(below).endswith(
+        "**not met** (best: IRB2600Screwing-v1 bc_maskable_ppo 0.550 [0.490, 0.600])")
+    above = {**below, "IKBranch/KukaKR6-v1": record([0.6, 0.51, 0.7])}
+    assert verdict(above).endswith(": met (KukaKR6-v1 bc_maskable_ppo 0.600 [0.510, 0.700])")
