@@ -121,11 +121,8 @@ def _witnessed(coarse, survivors, pair_a, pair_b, pair_contact, pair_skewer, slo
     (``shapes._axis_in_cylinder``: a cylinder's inner shape leaves its rims out), else
     ``UNDECIDED``. The cylinder pass runs only where no inner pair proved a contact."""
     for row in range(survivors):
-        if coarse[row, 1] >= 0.0:
-            continue
-        k = int(coarse[row, 0])
-        limit = pair_contact[k]
-        if limit == -math.inf:
+        k, limit = _witness_row(coarse, row, pair_contact)
+        if k < 0:
             continue
         a, b = pair_a[k], pair_b[k]
         distance = _inner_distance(slot_inner[a], _centre(wpos, a), _rotation(wrot, a),
@@ -137,11 +134,8 @@ def _witnessed(coarse, survivors, pair_a, pair_b, pair_contact, pair_skewer, slo
                 _size(slot_inner_size, b))):
             return CONTACT
     for row in range(survivors):
-        if coarse[row, 1] >= 0.0:
-            continue
-        k = int(coarse[row, 0])
-        limit = pair_contact[k]
-        if limit == -math.inf:
+        k, limit = _witness_row(coarse, row, pair_contact)
+        if k < 0:
             continue
         for side in range(2):
             a, b = (pair_a[k], pair_b[k]) if side == 0 else (pair_b[k], pair_a[k])
@@ -151,6 +145,20 @@ def _witnessed(coarse, survivors, pair_a, pair_b, pair_contact, pair_skewer, slo
                     _centre(wpos, b), _rotation(wrot, b), _size(slot_size, b), limit):
                 return CONTACT
     return UNDECIDED
+
+
+@njit(inline="always")
+def _witness_row(coarse, row, pair_contact):
+    """(pair, its contact distance) of ``coarse`` row ``row`` if a witness may prove it
+    in contact (its bounding spheres may be within the margin, and the pair has a
+    witness at all), else (−1, −inf)."""
+    if coarse[row, 1] >= 0.0:
+        return -1, -math.inf
+    k = int(coarse[row, 0])
+    limit = pair_contact[k]
+    if limit == -math.inf:
+        return -1, limit
+    return k, limit
 
 
 @njit(inline="always")
