@@ -134,6 +134,7 @@ ENV_SPECS["IKBranch/KukaKR6Deburring-v0"] = {
 ONWARD_SUCCESSORS: dict[str, tuple[str, int]] = {
     "IKBranch/Anthropomorphic-v3": ("IKBranch/Anthropomorphic-v4", 3),
     "IKBranch/UR5e-v1": ("IKBranch/UR5e-v2", 2),
+    "IKBranch/KukaKR6-v1": ("IKBranch/KukaKR6-v2", 2),
 }
 ENV_SPECS.update({new: {**copy.deepcopy(ENV_SPECS[old]), "onward_moves": moves}
                   for old, (new, moves) in ONWARD_SUCCESSORS.items()})

@@ -275,6 +275,12 @@ class IKBranchEnv(gym.Env):
     ===================== ======================= ===========================================
 
     ## Version history
+    - KukaKR6 **-v2** (2026-12-05): the observation also shows, per branch of the next
+      waypoint, the least travel of the next two moves along paths the env has checked to
+      be collision-free (``onward_moves=2``, ``free_travel_onward``), as Anthropomorphic-v4
+      and UR5e-v2 do: a branch whose every free move on leads into a branch with no free
+      move after it reads 1. Tasks, scenes, rewards and collision verdicts are
+      KukaKR6-v1's, which stays registered for its published models.
     - UR5e **-v3** (2026-12-05): the env checks the moves into the next waypoint in order
       of least travel until eight are free (``checked_moves``), where UR5e-v2 checks all
       256 paths; the moves left unchecked read as colliding, and one taken is checked then

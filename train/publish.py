@@ -63,7 +63,7 @@ HEADLINE_GOALS: dict[str, float] = {
     "IKBranch/ToolTransfer-v1": 0.02, "IKBranch/Anthropomorphic-v2": 0.02,
     "IKBranch/ToolTransfer-v2": 0.02, "IKBranch/Anthropomorphic-v3": 0.01,
     "IKBranch/Anthropomorphic-v4": 0.01, "IKBranch/KukaKR6-v1": 0.01,
-    "IKBranch/UR5e-v2": 0.02, "IKBranch/UR5e-v3": 0.02,
+    "IKBranch/KukaKR6-v2": 0.01, "IKBranch/UR5e-v2": 0.02, "IKBranch/UR5e-v3": 0.02,
 }
 
 

@@ -109,7 +109,7 @@ CURRENT = {
     "IKBranch/DualRRRPPP-v2": "IKBranch/DualRRRPPP-v1",
     "IKBranch/DualPPRPRR-v2": "IKBranch/DualPPRPRR-v1",
     "IKBranch/RodMechanism-v3": "IKBranch/RodMechanism-v2",
-    "IKBranch/KukaKR6-v1": "IKBranch/KukaKR6-v0",
+    "IKBranch/KukaKR6-v2": "IKBranch/KukaKR6-v1",  # see ONWARD
     "IKBranch/UR5e-v3": "IKBranch/UR5e-v2",  # see CHECKED
     "IKBranch/IRB4600ToolTransfer-v1": "IKBranch/IRB4600ToolTransfer-v0",
     "IKBranch/IRB2600Screwing-v1": "IKBranch/IRB2600Screwing-v0",
@@ -117,9 +117,10 @@ CURRENT = {
 }
 #: Ids of the current generation that see several moves ahead, and those moves; the id
 #: each succeeds is of the drawn generation, collided as drawn, and stays registered.
-ONWARD = {"IKBranch/Anthropomorphic-v4": 3, "IKBranch/UR5e-v2": 2}
+ONWARD = {"IKBranch/Anthropomorphic-v4": 3, "IKBranch/UR5e-v2": 2, "IKBranch/KukaKR6-v2": 2}
 DRAWN_BEFORE = {"IKBranch/Anthropomorphic-v3": "IKBranch/Anthropomorphic-v2",
-                "IKBranch/UR5e-v1": "IKBranch/UR5e-v0", "IKBranch/UR5e-v2": "IKBranch/UR5e-v1"}
+                "IKBranch/UR5e-v1": "IKBranch/UR5e-v0", "IKBranch/UR5e-v2": "IKBranch/UR5e-v1",
+                "IKBranch/KukaKR6-v1": "IKBranch/KukaKR6-v0"}
 #: Ids of the current generation that check the moves into the next waypoint until so
 #: many are free; the id each succeeds sees several moves ahead and stays registered.
 CHECKED = {"IKBranch/UR5e-v3": 8}
