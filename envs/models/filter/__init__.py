@@ -175,7 +175,9 @@ def _same_model(one: CompiledScene, other: CompiledScene) -> bool:
     for item in dataclasses.fields(one):
         if item.name in PER_SCENE:
             continue
-        if not np.array_equal(getattr(one, item.name), getattr(other, item.name)):
+        # (NaN rows: joints without a world-fixed line, ``layout.CompiledScene``.)
+        if not np.array_equal(getattr(one, item.name), getattr(other, item.name),
+                              equal_nan=True):
             return False
     return True
 

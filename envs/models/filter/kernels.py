@@ -317,7 +317,7 @@ def _scene(geometry, e):
      pair_b, pair_margin, pair_lever, pair_reach, pair_kind, pair_fixed, slot_pairs,
      slot_inner, slot_inner_size, pair_contact, pair_skewer) = geometry
     return (slot_body, slot_static, slot_pos[e], slot_rot[e], slot_type, slot_size[e],
-            slot_radius[e], pair_a, pair_b, pair_margin, pair_lever, pair_reach[e],
+            slot_radius[e], pair_a, pair_b, pair_margin, pair_lever[e], pair_reach[e],
             pair_kind[e], pair_fixed[e], slot_pairs, slot_inner[e], slot_inner_size[e],
             pair_contact, pair_skewer)
 
@@ -417,10 +417,7 @@ def check_paths(tree, geometry, motion, exact, scenes, start_rows, end_rows, ste
     xpos, xmat, wpos, wrot, rates, coarse = _work(tree, geometry)
     kinematic = tree[:12]
     qpos0 = tree[11]
-    pair_lever = geometry[10]
-    # Per joint, every pair's lever arm: a path's rates in one contiguous pass per joint.
-    lever_by_joint = np.ascontiguousarray(pair_lever.T)
-    nq = pair_lever.shape[1]
+    nq = len(qpos0)
     dof = end_rows.shape[1]
     delta, qpos, start = np.zeros(nq), np.empty(nq), np.empty(nq)
     slots = len(motion[0])
@@ -428,7 +425,7 @@ def check_paths(tree, geometry, motion, exact, scenes, start_rows, end_rows, ste
     local = (dq, growth, speeds)
     size = _queue_size(steps)
     queue_lo, queue_hi = np.empty(size, np.int64), np.empty(size, np.int64)
-    active = np.empty(len(pair_lever) + 1, dtype=np.int64)
+    active = np.empty(len(geometry[7]) + 1, dtype=np.int64)
     entered = -1
     for m in range(len(steps)):
         n = steps[m]
@@ -438,11 +435,12 @@ def check_paths(tree, geometry, motion, exact, scenes, start_rows, end_rows, ste
             _enter(scene, wpos, wrot)
             entered = e
         _fill_qpos(start, qpos0, start_rows[0] if start_rows.shape[0] == 1 else start_rows[m])
-        _path_rates(start, end_rows, m, lever_by_joint, delta, rates, dq)
+        _path_rates(start, end_rows, m, scene[10], delta, rates, dq)
         # The raked search stays here: as an inlined helper taking these arrays (numba
         # reference-counts them per call) it measured ~7 % slower on short paths.
         found = n + 1
         active[0] = -1  # the path's first sample lists the pairs that can matter
+        settle = True
         head, tail = 0, 1  # circular queue of intervals [lo, hi]
         queue_lo[0], queue_hi[0] = 0, n
         while head != tail:
@@ -459,6 +457,7 @@ def check_paths(tree, geometry, motion, exact, scenes, start_rows, end_rows, ste
             step = _sample_step(kinematic, scene, qpos, xpos, xmat, wpos, wrot, rates,
                                 coarse, max(mid - lo, hi - mid) / n, counters, motion, local,
                                 True, active)
+            settle = _settle(settle, step, active, rates)
             reach = 0
             if step < 0.0:
                 if step == CONTACT:
@@ -481,6 +480,25 @@ def check_paths(tree, geometry, motion, exact, scenes, start_rows, end_rows, ste
             tail = _push_interval(queue_lo, queue_hi, tail, lo, mid - reach - 1)
             tail = _push_interval(queue_lo, queue_hi, tail, mid + reach + 1, hi)
         out[m] = found if found <= n else -1
+
+
+@njit(inline="always")
+def _settle(first, step, active, rates):
+    """After a path's ``first`` sample, proven free (``step`` ≥ 0): drop from ``active``
+    the pairs whose rate along the path is 0. Their distance does not change along the
+    path, and that sample's bounds kept it beyond the margin (every survivor of its
+    sphere pass with a rate of 0 has a sphere step of −1, so it was bounded). Returns
+    False: later samples settle nothing."""
+    if not (first and step >= 0.0):
+        return False
+    keep = 0
+    for i in range(active[0]):
+        k = active[1 + i]
+        if rates[k] > 0.0:
+            active[1 + keep] = k
+            keep += 1
+    active[0] = keep
+    return False
 
 
 @njit(inline="always")

@@ -73,8 +73,11 @@ class CompiledScene:
     second), the contact margin, the distance under which inner shapes prove a contact
     (−inf: no witness for the pair), whether MuJoCo collides the pair as a primitive
     capsule and box (no witness for a skewer), and per joint the lever arm that bounds the
-    rate of change of the pair's distance (m per rad, 1 for a slide). The fields in
-    ``PER_SCENE`` have a leading scene axis (module docstring).
+    rate of change of the pair's distance (m per rad, 1 for a slide; ``pair_lever``
+    (njnt, P), per joint for a path's rates in one pass: ``pair_lever_own`` without the
+    symmetries of static partners, which depend on where they lie, and ``jnt_line``, the
+    world-fixed axis lines that such symmetries are about). The fields in ``PER_SCENE``
+    have a leading scene axis (module docstring).
     """
 
     body_parent: np.ndarray
@@ -113,6 +116,8 @@ class CompiledScene:
     pair_margin: np.ndarray
     pair_lever: np.ndarray
     pair_reach: np.ndarray
+    pair_lever_own: np.ndarray
+    jnt_line: np.ndarray
     slot_lever: np.ndarray
     slot_moved: np.ndarray
     jnt_body: np.ndarray
@@ -145,7 +150,7 @@ class CompiledScene:
 #: The fields of :class:`CompiledScene` that differ between scenes of one model (static
 #: geoms' places and sizes): a leading scene axis.
 PER_SCENE = ("slot_pos", "slot_rot", "slot_size", "slot_radius", "slot_inner",
-             "slot_inner_size", "pair_fixed", "pair_reach", "pair_kind")
+             "slot_inner_size", "pair_fixed", "pair_reach", "pair_kind", "pair_lever")
 
 
 # ------------------------------------------------------------------------------ geometry
@@ -404,28 +409,94 @@ def _symmetric_about(model: mujoco.MjModel, data: mujoco.MjData, geom: int,
     return False
 
 
-def _turns_about_symmetry(model: mujoco.MjModel, data: mujoco.MjData, joint: int,
-                          mover: int, other: int) -> bool:
-    """Whether hinge ``joint``, which moves geom ``mover`` and not geom ``other`` (both on
-    moving bodies), leaves their distance unchanged in every configuration: its axis line
-    is an axis of symmetry of ``mover`` and fixed to mover's body (mover spins in place),
-    or of ``other`` and fixed to other's body (the pair turns about other's axis). Such a
-    joint drops out of the pair's lever. Static geoms are left out: a refresh may move
-    them (``refresh_static``)."""
+def _spins(model: mujoco.MjModel, data: mujoco.MjData, joint: int, mover: int) -> bool:
+    """Whether hinge ``joint``, which moves geom ``mover``, only spins it in place in every
+    configuration: its axis line is an axis of symmetry of ``mover`` and fixed to mover's
+    body. Such a joint keeps mover's distance to anything it does not move."""
+    line = _hinge_line(model, data, joint)
+    if line is None:
+        return False
+    point, direction = line
+    return (_symmetric_about(model, data, mover, point, direction)
+            and _line_fixed_between(model, data, point, direction,
+                                    int(model.geom_bodyid[mover]), int(model.jnt_bodyid[joint])))
+
+
+def _turns_around(model: mujoco.MjModel, data: mujoco.MjData, joint: int, other: int) -> bool:
+    """Whether hinge ``joint``, which does not move geom ``other`` (on a moving body), turns
+    what it moves about an axis of symmetry of ``other`` fixed to other's body in every
+    configuration: the distances to ``other`` stay. (Static geoms are left to
+    :func:`_world_lines` and :func:`_static_levers`: a refresh may move them.)"""
+    line = _hinge_line(model, data, joint)
+    if line is None or model.body_weldid[model.geom_bodyid[other]] == 0:
+        return False
+    point, direction = line
+    home = int(model.jnt_bodyid[joint])
+    return (_symmetric_about(model, data, other, point, direction)
+            and _line_fixed_between(model, data, point, direction,
+                                    int(model.body_parentid[home]),
+                                    int(model.geom_bodyid[other])))
+
+
+def _hinge_line(model: mujoco.MjModel, data: mujoco.MjData,
+                joint: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """The world line (a point, the unit direction) of a hinge that is its body's only
+    joint, at ``data``'s configuration; None for any other joint."""
     home = int(model.jnt_bodyid[joint])
     if model.jnt_type[joint] == _SLIDE or model.body_jntnum[home] != 1:
-        return False
-    point, direction = data.xanchor[joint].copy(), data.xaxis[joint].copy()
-    direction /= np.linalg.norm(direction)
-    mover_body, other_body = int(model.geom_bodyid[mover]), int(model.geom_bodyid[other])
-    if model.body_weldid[other_body] == 0:
-        return False
-    spins = (_symmetric_about(model, data, mover, point, direction)
-             and _line_fixed_between(model, data, point, direction, mover_body, home))
-    turns_around = (_symmetric_about(model, data, other, point, direction)
-                    and _line_fixed_between(model, data, point, direction,
-                                            int(model.body_parentid[home]), other_body))
-    return spins or turns_around
+        return None
+    direction = data.xaxis[joint].copy()
+    return data.xanchor[joint].copy(), direction / np.linalg.norm(direction)
+
+
+def _world_lines(model: mujoco.MjModel, data: mujoco.MjData, dof: int) -> np.ndarray:
+    """(njnt, 6): per hinge (its body's only joint, among the first ``dof``) whose axis
+    line stays fixed in the world in every configuration, a point of that line and its
+    unit direction; NaN rows for every other joint. Such a joint turns what it moves about
+    that line: a static geom symmetric about it keeps its distance to all of it."""
+    lines = np.full((model.njnt, 6), np.nan)
+    for joint in range(min(dof, model.njnt)):
+        line = _hinge_line(model, data, joint)
+        if line is None:
+            continue
+        point, direction = line
+        if _line_fixed_between(model, data, point, direction,
+                               int(model.body_parentid[model.jnt_bodyid[joint]]), 0):
+            lines[joint, :3], lines[joint, 3:] = point, direction
+    return lines
+
+
+@njit
+def _static_levers(k, b, slot_type, slot_pos, slot_rot, pair_lever_own, jnt_line, pair_lever):
+    """Pair ``k``'s lever arms (``pair_lever[:, k]``) against its static slot ``b`` where
+    it lies now: its own levers, but 0 for a joint that turns the pair's moving geom about
+    a world-fixed line (``jnt_line``) that is an axis of symmetry of ``b`` — a sphere's
+    centre on it, a capsule's or cylinder's axis along it, a plane's normal along it."""
+    cx, cy, cz = slot_pos[b, 0], slot_pos[b, 1], slot_pos[b, 2]
+    nx, ny, nz = slot_rot[b, 0, 2], slot_rot[b, 1, 2], slot_rot[b, 2, 2]
+    kind = slot_type[b]
+    for j in range(pair_lever_own.shape[0]):
+        lever = pair_lever_own[j, k]
+        if lever > 0.0 and (kind == SPHERE or kind == CAPSULE or kind == CYLINDER
+                           or kind == PLANE):
+            px, py, pz = jnt_line[j, 0], jnt_line[j, 1], jnt_line[j, 2]
+            ux, uy, uz = jnt_line[j, 3], jnt_line[j, 4], jnt_line[j, 5]
+            # |(c − p) × u|: the centre's distance from the line (NaN: no world line).
+            dx, dy, dz = cx - px, cy - py, cz - pz
+            off = math.sqrt((dy * uz - dz * uy) ** 2 + (dz * ux - dx * uz) ** 2
+                            + (dx * uy - dy * ux) ** 2)
+            # |n × u|: the sine between the geom's axis (a plane's normal) and the line.
+            tilt = math.sqrt((ny * uz - nz * uy) ** 2 + (nz * ux - nx * uz) ** 2
+                             + (nx * uy - ny * ux) ** 2)
+            if kind == PLANE:
+                symmetric = tilt <= _ON_LINE
+            elif kind == SPHERE:
+                symmetric = off <= _ON_LINE
+            else:
+                symmetric = off <= _ON_LINE and tilt <= _ON_LINE
+            if symmetric:
+                lever = 0.0
+        pair_lever[j, k] = lever
 
 
 def _joints_after(model: mujoco.MjModel) -> np.ndarray:
@@ -440,6 +511,32 @@ def _joints_after(model: mujoco.MjModel) -> np.ndarray:
             after[j, i] = (owner == body and i > j) or (
                 owner != body and owner in _ancestors(model, body))
     return after
+
+
+def _own_levers(model: mujoco.MjModel, data: mujoco.MjData, geoms: np.ndarray,
+                pair_a: np.ndarray, pair_b: np.ndarray, slot_static: np.ndarray,
+                levers: np.ndarray, moved: np.ndarray, dof: int) -> np.ndarray:
+    """(njnt, P) every pair's lever arms per joint (a path's rates in one contiguous pass
+    per joint), but for the symmetries of static partners (a scene's: ``_static_levers``):
+    against a static partner, the moving geom's own; between two moving geoms, those of
+    the joints that move one and not the other (the joints that move both turn the pair
+    rigidly together). A joint drops out that spins a geom about an axis of symmetry of
+    its own, or turns it about one of the other's (moving) geom, fixed to that geom's body
+    in every configuration."""
+    lever_own = np.zeros((len(pair_a), model.njnt))
+    for k, (a, b) in enumerate(zip(pair_a, pair_b, strict=True)):
+        if slot_static[b]:
+            lever_own[k], only_a = levers[a], moved[a]
+        else:
+            only_a, only_b = moved[a] & ~moved[b], moved[b] & ~moved[a]
+            lever_own[k] = np.where(only_a, levers[a], 0.0) + np.where(only_b, levers[b], 0.0)
+        for joint in np.flatnonzero(lever_own[k]).tolist():
+            mover, other = (a, b) if only_a[joint] else (b, a)
+            if (_spins(model, data, joint, int(geoms[mover]))
+                    or _turns_around(model, data, joint, int(geoms[other]))):
+                lever_own[k, joint] = 0.0
+    lever_own[:, dof:] = 0.0
+    return np.ascontiguousarray(lever_own.T)
 
 
 def compile_scene(model: mujoco.MjModel, dof: int, pairs: np.ndarray) -> CompiledScene:
@@ -493,23 +590,16 @@ def compile_scene(model: mujoco.MjModel, dof: int, pairs: np.ndarray) -> Compile
     pair_b = np.array([ends[k][1] for k in order], dtype=np.int64)
     pair_kind = np.array([kinds[k] for k in order], dtype=np.int64)
     margin = (model.geom_margin[pairs].sum(axis=1)[order] if len(pairs) else np.zeros(0))
-    pair_lever = np.zeros((len(pair_a), model.njnt))
     pair_fixed = np.zeros((len(pair_a), 6))  # a static partner's centre (and plane normal)
-    for k, (a, b) in enumerate(zip(pair_a, pair_b, strict=True)):
-        if slot_static[b]:
-            pair_lever[k] = levers[a]
-            pair_fixed[k, :3], pair_fixed[k, 3:] = slot_pos[b], slot_rot[b][:, 2]
-        else:  # joints that move both turn the pair rigidly together and drop out
-            only_a, only_b = moved[a] & ~moved[b], moved[b] & ~moved[a]
-            pair_lever[k] = np.where(only_a, levers[a], 0.0) + np.where(only_b, levers[b], 0.0)
-            # So do joints that turn one about a line that is an axis of symmetry of
-            # either geom, fixed to that geom's body in every configuration.
-            for joint in np.flatnonzero(pair_lever[k]).tolist():
-                mover, other = (a, b) if only_a[joint] else (b, a)
-                if _turns_about_symmetry(model, data, joint, int(geoms[mover]),
-                                         int(geoms[other])):
-                    pair_lever[k, joint] = 0.0
-    pair_lever[:, dof:] = 0.0
+    for k in np.flatnonzero(slot_static[pair_b]).tolist():
+        pair_fixed[k, :3], pair_fixed[k, 3:] = slot_pos[pair_b[k]], slot_rot[pair_b[k]][:, 2]
+    pair_lever_own = _own_levers(model, data, geoms, pair_a, pair_b, slot_static, levers,
+                                 moved, dof)
+    jnt_line = _world_lines(model, data, dof)
+    pair_lever = pair_lever_own.copy()
+    for k in np.flatnonzero(slot_static[pair_b]).tolist():
+        _static_levers(k, int(pair_b[k]), slot_type, slot_pos, slot_rot, pair_lever_own,
+                       jnt_line, pair_lever)
     pair_contact = np.where(_witnessed(model, geoms, pair_a, pair_b, slot_inner),
                             margin - WITNESS_TOLERANCE, -math.inf)
     slot_pairs = np.searchsorted(pair_a, np.arange(n_slots + 1)).astype(np.int64)
@@ -553,6 +643,8 @@ def compile_scene(model: mujoco.MjModel, dof: int, pairs: np.ndarray) -> Compile
         slot_extent=extent,
         pair_margin=margin + DISTANCE_TOLERANCE,
         pair_lever=pair_lever,
+        pair_lever_own=pair_lever_own,
+        jnt_line=jnt_line,
         # Bounding radii plus margin: a plane (always ``b``) adds no radius. Summed as
         # ``refresh_static`` sums them, so a refresh rewrites the same bits.
         pair_reach=(slot_radius[pair_a] + np.where(slot_type[pair_b] == PLANE, 0.0,
@@ -624,8 +716,9 @@ def refresh_static(scene: CompiledScene, model: mujoco.MjModel,
         scene.slot_size[0], scene.slot_radius[0], scene.slot_pos[0], scene.slot_rot[0],
         scene.slot_inner[0], scene.slot_inner_size[0], scene.body_xpos, scene.body_xmat,
         scene.pair_a, scene.pair_b, scene.pair_margin, scene.pair_kind_own, scene.slot_extent,
-        scene.pair_fixed[0], scene.pair_reach[0], scene.pair_kind[0],
-        model.geom_type, model.geom_size, model.geom_aabb, model.geom_quat, model.geom_pos)
+        scene.pair_fixed[0], scene.pair_reach[0], scene.pair_kind[0], scene.pair_lever_own,
+        scene.jnt_line, scene.pair_lever[0], model.geom_type, model.geom_size, model.geom_aabb,
+        model.geom_quat, model.geom_pos)
     if changed >= 0:
         name = model.geom(int(scene.slot_geom[changed])).name
         raise ValueError(f"geom {name!r} changed its kind")
@@ -635,8 +728,8 @@ def refresh_static(scene: CompiledScene, model: mujoco.MjModel,
 def _refresh_static(every, geoms, slot_geom, slot_body, slot_static, slot_type, slot_size,
                     slot_radius, slot_pos, slot_rot, slot_inner, slot_inner_size, body_xpos,
                     body_xmat, pair_a, pair_b, pair_margin, pair_kind_own, slot_extent,
-                    pair_fixed, pair_reach, pair_kind, geom_type, geom_size, geom_aabb,
-                    geom_quat, geom_pos):
+                    pair_fixed, pair_reach, pair_kind, pair_lever_own, jnt_line, pair_lever,
+                    geom_type, geom_size, geom_aabb, geom_quat, geom_pos):
     """:func:`refresh_static` on the arrays: returns −1, or the slot whose geom changed
     its container kind (left half-refreshed: the caller raises)."""
     refreshed = np.zeros(len(slot_geom), dtype=np.bool_)
@@ -674,7 +767,8 @@ def _refresh_static(every, geoms, slot_geom, slot_body, slot_static, slot_type, 
                               + (slot_rot[s, i, 0] * offset[0] + slot_rot[s, i, 1] * offset[1]
                                  + slot_rot[s, i, 2] * offset[2]))
     _refresh_pairs(refreshed, slot_pos, slot_rot, slot_type, slot_radius, pair_a, pair_b,
-                   pair_margin, pair_kind_own, slot_extent, pair_fixed, pair_reach, pair_kind)
+                   pair_margin, pair_kind_own, slot_extent, pair_fixed, pair_reach, pair_kind,
+                   pair_lever_own, jnt_line, pair_lever)
     return -1
 
 
@@ -688,7 +782,8 @@ def _listed(geoms, g):
 
 @njit
 def _refresh_pairs(refreshed, slot_pos, slot_rot, slot_type, slot_radius, pair_a, pair_b,
-                   pair_margin, pair_kind_own, slot_extent, pair_fixed, pair_reach, pair_kind):
+                   pair_margin, pair_kind_own, slot_extent, pair_fixed, pair_reach, pair_kind,
+                   pair_lever_own, jnt_line, pair_lever):
     """What the pairs keep of their ``refreshed`` static slots (see :func:`refresh_static`)."""
     for k in range(len(pair_b)):
         b = pair_b[k]
@@ -708,4 +803,6 @@ def _refresh_pairs(refreshed, slot_pos, slot_rot, slot_type, slot_radius, pair_a
         gap = math.sqrt(x * x + y * y + z * z) - partner - pair_margin[k]
         far = pair_kind_own[k] == 0 and gap > slot_extent[pair_a[k]]
         pair_kind[k] = OUT_OF_REACH if far else pair_kind_own[k]
+        _static_levers(k, b, slot_type, slot_pos, slot_rot, pair_lever_own, jnt_line,
+                       pair_lever)
 

@@ -158,7 +158,7 @@ def test_a_refreshed_filter_equals_one_compiled_for_the_laid_scene(arm_name):
         fresh = compile_scene(checker.model, env.arm.dof, checker._pairs)
         # (pair_kind: a fresh scene does not skip parked slots; the test above covers that.)
         for name in ("slot_type", "pair_kind_own", "slot_size", "slot_radius", "slot_geom",
-                     "slot_inner", "slot_inner_size", "pair_contact"):
+                     "slot_inner", "slot_inner_size", "pair_contact", "pair_lever"):
             np.testing.assert_array_equal(getattr(scene, name), getattr(fresh, name), name)
         for name in ("slot_pos", "slot_rot", "pair_fixed", "pair_reach"):
             np.testing.assert_allclose(getattr(scene, name), getattr(fresh, name),

@@ -80,7 +80,7 @@ def test_pair_rates_bound_how_fast_pairs_close(arm_name, scene):
     compiled = checker._filter.scene
     arrays, geometry = compiled.tree, compiled.geometry
     scene = kernels._scene(geometry, 0)
-    slot_radius, pair_a, pair_b, pair_lever = scene[6], scene[7], scene[8], scene[10]
+    slot_radius, pair_a, pair_b, pair_lever = scene[6], scene[7], scene[8], scene[10].T
     xpos, xmat, wpos, wrot, _, _ = kernels._work(arrays, geometry)
     directions = np.concatenate([np.zeros((1, 3)), np.eye(3), -np.eye(3)])
     finite = np.where(np.isfinite(slot_radius), slot_radius, 0.0)
@@ -126,6 +126,59 @@ def test_pair_rates_bound_how_fast_pairs_close(arm_name, scene):
             # MuJoCo's convex solver's tolerance (1e-6) on either side.
             assert (change <= rates[symmetric] * (t[1] - t[0]) + 2e-6).all()
 
+
+
+@pytest.mark.parametrize("arm_name", ["ur5e", "spherical", "cylindrical"])
+def test_a_static_partner_symmetric_about_a_world_fixed_axis_drops_its_joint(arm_name):
+    # A joint whose axis line stays put in the world (the base's pan; the cylindrical
+    # arm's column turn above its vertical slide) turns the moving geom about that line:
+    # a static partner symmetric about it (the floor, a base plate, a clutter cylinder on
+    # the axis) keeps MuJoCo's distance to it whatever the joint does, so the joint drops
+    # out of the pair's lever, per scene: a partner laid off the axis takes it back.
+    import gymnasium as gym
+
+    env = gym.make("IKBranch/Anthropomorphic-v3", arm=arm_name, n_waypoints=3).unwrapped
+    checker, arm = env.checker, env.arm
+    scene, model = checker._filter.scene, checker.model
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(5)
+    lower, upper = arm.joint_limits[:, 0], arm.joint_limits[:, 1]
+    for seed in (0, 3):
+        env._lay_scene(seed)
+        own, now = scene.pair_lever_own, scene.pair_lever[0]
+        near = scene.pair_kind[0] != layout.OUT_OF_REACH
+        dropped = np.argwhere((own != now) & near[None])
+        assert len(dropped) and (now <= own).all()
+        assert scene.slot_static[scene.pair_b[dropped[:, 1]]].all()
+        for j, k in dropped.tolist():
+            g1, g2 = (int(scene.slot_geom[s]) for s in (scene.pair_a[k], scene.pair_b[k]))
+            q = rng.uniform(lower, upper)
+            distances = []
+            for value in np.linspace(lower[j], upper[j], 41):
+                q[j] = value
+                data.qpos[: arm.dof] = q
+                mujoco.mj_kinematics(model, data)
+                distances.append(mujoco.mj_geomDistance(model, data, g1, g2, 100.0, None))
+            # MuJoCo's convex solver's tolerance (1e-6) on either side.
+            assert np.ptp(distances) <= 2e-6, (model.geom(g1).name, model.geom(g2).name, j)
+    # A clutter cylinder moved onto the pan axis drops the pan from its pairs; moved off,
+    # the pairs take it back (the refresh rereads the levers as it rereads the places).
+    pan = int(np.flatnonzero(~np.isnan(scene.jnt_line[:, 0]))[0])
+    point, direction = scene.jnt_line[pan, :3], scene.jnt_line[pan, 3:]
+    cylinder = next(int(g) for g in scene.slot_geom[scene.slot_static]
+                    if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_CYLINDER
+                    and model.geom(int(g)).name.startswith("clutter"))
+    pairs = np.flatnonzero(scene.slot_geom[scene.pair_b] == cylinder)
+    pairs = pairs[scene.pair_lever_own[pan, pairs] > 0]
+    assert len(pairs)
+    model.geom_quat[cylinder] = [1.0, 0.0, 0.0, 0.0]
+    assert np.allclose(np.abs(direction), [0.0, 0.0, 1.0])
+    for shift, expected in ((0.0, 0.0), (0.3, None)):
+        model.geom_pos[cylinder] = point + 0.5 * direction + [shift, 0.0, 0.0]
+        checker.refresh_static(np.array([cylinder]))
+        levers = scene.pair_lever[0][pan, pairs]
+        want = scene.pair_lever_own[pan, pairs] if expected is None else expected
+        np.testing.assert_array_equal(levers, want)
 
 
 def test_unsupported_models_are_refused():
