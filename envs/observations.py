@@ -152,58 +152,84 @@ def _factor_branch(q: np.ndarray, hit: bool, c: int, windows: np.ndarray, turned
 
 
 @njit
-def _least_to(q: np.ndarray, fixed: np.ndarray, turned_value: np.ndarray,
-              window_ok: np.ndarray, free: np.ndarray, turned: np.ndarray, weights: np.ndarray,
-              into: bool) -> float:
-    """The least travel Σ_j w_j|q'_j − q_j| from configuration ``q`` (summed as the
-    general kernel sums it: ``abs(later − earlier) * w`` in joint order; ``into``: ``q``
-    is the later end) to any free branch of one waypoint given as :func:`_turn_tables`'
-    factors. Each free closed-form branch's best turn copy takes each turned joint's best
-    window: addition is monotonic, so that sum is the least of its copies' sums exactly."""
+def _joint_terms(src_fixed: np.ndarray, src_value: np.ndarray, src_ok: np.ndarray,
+                 dst_fixed: np.ndarray, dst_value: np.ndarray, dst_ok: np.ndarray,
+                 slot: np.ndarray, weights: np.ndarray, term: np.ndarray) -> None:
+    """``term[c, d, j, w]``: joint j's weighted travel w_j|Δq_j| between closed-form
+    branch c of one waypoint (in its window w of j, where j has turns) and the nearest
+    turn copy of closed-form branch d of another (given as :func:`_turn_tables`' factors,
+    ``src_*`` and ``dst_*``; ``slot[j]``: j's index among the turned joints, −1 for a
+    joint without turns). Each term as the general kernel computes it:
+    ``abs(later − earlier) * w`` (|x − y| and |y − x| are the same number)."""
+    kc, dof = src_fixed.shape
+    windows = src_value.shape[2]
+    for c in range(kc):
+        for d in range(kc):
+            for j in range(dof):
+                t = slot[j]
+                if t < 0:
+                    term[c, d, j, 0] = abs(dst_fixed[d, j] - src_fixed[c, j]) * weights[j]
+                    continue
+                for w in range(windows):
+                    least = np.inf
+                    if src_ok[c, t, w]:
+                        for v in range(windows):
+                            if dst_ok[d, t, v]:
+                                step = abs(dst_value[d, t, v] - src_value[c, t, w]) * weights[j]
+                                least = min(least, step)
+                    term[c, d, j, w] = least
+
+
+@njit
+def _least_over(term: np.ndarray, c: int, windows: np.ndarray, free: np.ndarray,
+                slot: np.ndarray) -> float:
+    """The least travel from the branch of closed form ``c`` in turn ``windows`` to any
+    free branch of the other waypoint (``free``: its free closed forms), summed from
+    :func:`_joint_terms` in joint order, as the general kernel sums it. Each free
+    closed-form branch's best turn copy takes each turned joint's best window: addition
+    is monotonic, so that sum is the least of its copies' sums exactly."""
     best = np.inf
-    dof, jt = len(q), len(turned)
-    for c in range(len(free)):
-        if not free[c]:
+    for d in range(len(free)):
+        if not free[d]:
             continue
         total = 0.0
-        t = 0
-        for j in range(dof):
-            if t < jt and turned[t] == j:
-                least = np.inf
-                for w in range(turned_value.shape[2]):
-                    if window_ok[c, t, w]:
-                        other = turned_value[c, t, w]
-                        step = abs(q[j] - other) if into else abs(other - q[j])
-                        least = min(least, step * weights[j])
-                t += 1
-                total += least
-            else:
-                other = fixed[c, j]
-                total += (abs(q[j] - other) if into else abs(other - q[j])) * weights[j]
+        for j in range(term.shape[2]):
+            t = slot[j]
+            total += term[c, d, j, 0 if t < 0 else windows[t]]
         best = min(best, total)
     return best
 
 
 @njit
-def _turned_travel_summaries(candidates: np.ndarray, valid: np.ndarray, tables: _TurnTables,
-                             turned: np.ndarray, weights: np.ndarray, scale: float,
-                             leaving: np.ndarray, arriving: np.ndarray) -> None:
+def _turned_travel_summaries(valid: np.ndarray, tables: _TurnTables, closed: np.ndarray,
+                             turned: np.ndarray, turns: np.ndarray, weights: np.ndarray,
+                             scale: float, leaving: np.ndarray, arriving: np.ndarray) -> None:
     """:func:`_travel_summaries` (the same values, bit for bit) from the factors of a
-    ladder with turn branches (:func:`_turn_tables`): O(N·K·Kc) instead of O(N·K²)."""
+    ladder with turn branches (:func:`_turn_tables`; ``closed``, ``turns``: each branch's
+    closed form and windows): per pair of waypoints each joint's travel between closed
+    forms and windows once, then per branch a sum of ``dof`` terms for each closed form,
+    where the general kernel sums over every pair of branches."""
     _, fixed, turned_value, window_ok, free = tables
-    n, k, _ = candidates.shape
+    n, kc, dof = fixed.shape
+    slot = np.full(dof, -1, dtype=np.int64)
+    for t in range(len(turned)):
+        slot[turned[t]] = t
+    term = np.empty((kc, kc, dof, turned_value.shape[3]))
     leaving[:] = 1.0
     arriving[:] = 1.0
     for i in range(n - 1):
-        for a in range(k):
+        _joint_terms(fixed[i], turned_value[i], window_ok[i], fixed[i + 1],
+                     turned_value[i + 1], window_ok[i + 1], slot, weights, term)
+        for a in range(len(closed)):
             if valid[i, a]:
-                least = _least_to(candidates[i, a], fixed[i + 1], turned_value[i + 1],
-                                  window_ok[i + 1], free[i + 1], turned, weights, False)
+                least = _least_over(term, closed[a], turns[a], free[i + 1], slot)
                 leaving[i, a] = min(least / scale, 1.0)
-            if valid[i + 1, a]:
-                least = _least_to(candidates[i + 1, a], fixed[i], turned_value[i],
-                                  window_ok[i], free[i], turned, weights, True)
-                arriving[i + 1, a] = min(least / scale, 1.0)
+        _joint_terms(fixed[i + 1], turned_value[i + 1], window_ok[i + 1], fixed[i],
+                     turned_value[i], window_ok[i], slot, weights, term)
+        for b in range(len(closed)):
+            if valid[i + 1, b]:
+                least = _least_over(term, closed[b], turns[b], free[i], slot)
+                arriving[i + 1, b] = min(least / scale, 1.0)
 
 
 class ObservationBuilder:
@@ -351,8 +377,8 @@ class ObservationBuilder:
                                   closed, turned, turns, n_closed, windows)
         if tables is not None and tables[0]:
             assert self._turns is not None  # tables are made from the turn factors only
-            _turned_travel_summaries(ladder.candidates, ladder.valid, tables, self._turns[1],
-                                     weights, scale, leaving, arriving)
+            _turned_travel_summaries(ladder.valid, tables, closed, turned, turns, weights,
+                                     scale, leaving, arriving)
         else:
             _travel_summaries(ladder.candidates, ladder.valid,
                               ladder.valid & ~ladder.endpoint_collision, weights, scale,

@@ -339,8 +339,8 @@ def test_factored_travel_summaries_are_the_general_ones(env_id):
         tables = _turn_tables(ladder.candidates, ladder.valid, ladder.endpoint_collision,
                               *factors)
         assert tables[0]  # the ladder is the product of its factors
-        _turned_travel_summaries(ladder.candidates, ladder.valid, tables, turned, weights, scale,
-                                 *factored)
+        _turned_travel_summaries(ladder.valid, tables, factors[0], turned, factors[2], weights,
+                                 scale, *factored)
         np.testing.assert_array_equal(factored[0], expected[0])
         np.testing.assert_array_equal(factored[1], expected[1])
     # A ladder that is not a product (a turn copy moved) is recognised: the general kernel.
