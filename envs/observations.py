@@ -112,10 +112,9 @@ def _turn_tables(candidates: np.ndarray, valid: np.ndarray, endpoint: np.ndarray
     factored = True
     for i in range(n):
         for b in range(k):
-            if valid[i, b] and not _factor_branch(candidates[i, b], endpoint[i, b], closed[b],
-                                                  turns[b], turned, is_turned, fixed[i],
-                                                  turned_value[i], window_ok[i], exists[i],
-                                                  free[i]):
+            if valid[i, b] and not _factor_branch(candidates, endpoint, i, b, closed, turns,
+                                                  turned, is_turned, fixed, turned_value,
+                                                  window_ok, exists, free):
                 factored = False
         for b in range(k):  # validity is the product of the windows'
             product = exists[i, closed[b]]
@@ -125,29 +124,33 @@ def _turn_tables(candidates: np.ndarray, valid: np.ndarray, endpoint: np.ndarray
     return factored, fixed, turned_value, window_ok, free
 
 
-@njit
-def _factor_branch(q: np.ndarray, hit: bool, c: int, windows: np.ndarray, turned: np.ndarray,
+@njit(inline="always")
+def _factor_branch(candidates: np.ndarray, endpoint: np.ndarray, i: int, b: int,
+                   closed: np.ndarray, turns: np.ndarray, turned: np.ndarray,
                    is_turned: np.ndarray, fixed: np.ndarray, turned_value: np.ndarray,
                    window_ok: np.ndarray, exists: np.ndarray, free: np.ndarray) -> bool:
-    """Enter one valid branch (closed-form ``c``, ``windows`` of its turned joints) into
-    the factors of its waypoint; False where it contradicts what its turn copies entered."""
-    first = not exists[c]
+    """Enter valid branch ``b`` of waypoint ``i`` (closed-form ``closed[b]``, windows
+    ``turns[b]`` of its turned joints) into the factors of its waypoint; False where it
+    contradicts what its turn copies entered. (Whole arrays and indices: views made per
+    branch cost more than the work.)"""
+    c, hit = closed[b], endpoint[i, b]
+    first = not exists[i, c]
     if first:
-        exists[c], free[c] = True, not hit
-    elif free[c] == hit:
+        exists[i, c], free[i, c] = True, not hit
+    elif free[i, c] == hit:
         return False
-    for j in range(len(q)):
+    for j in range(candidates.shape[2]):
         if not is_turned[j]:
             if first:
-                fixed[c, j] = q[j]
-            elif fixed[c, j] != q[j]:
+                fixed[i, c, j] = candidates[i, b, j]
+            elif fixed[i, c, j] != candidates[i, b, j]:
                 return False
     for t in range(len(turned)):
-        w = windows[t]
-        value = q[turned[t]]
-        if window_ok[c, t, w] and turned_value[c, t, w] != value:
+        w = turns[b, t]
+        value = candidates[i, b, turned[t]]
+        if window_ok[i, c, t, w] and turned_value[i, c, t, w] != value:
             return False
-        turned_value[c, t, w], window_ok[c, t, w] = value, True
+        turned_value[i, c, t, w], window_ok[i, c, t, w] = value, True
     return True
 
 
@@ -180,22 +183,23 @@ def _joint_terms(src_fixed: np.ndarray, src_value: np.ndarray, src_ok: np.ndarra
                     term[c, d, j, w] = least
 
 
-@njit
-def _least_over(term: np.ndarray, c: int, windows: np.ndarray, free: np.ndarray,
-                slot: np.ndarray) -> float:
-    """The least travel from the branch of closed form ``c`` in turn ``windows`` to any
-    free branch of the other waypoint (``free``: its free closed forms), summed from
-    :func:`_joint_terms` in joint order, as the general kernel sums it. Each free
-    closed-form branch's best turn copy takes each turned joint's best window: addition
-    is monotonic, so that sum is the least of its copies' sums exactly."""
+@njit(inline="always")
+def _least_over(term: np.ndarray, closed: np.ndarray, turns: np.ndarray, b: int,
+                free: np.ndarray, other: int, slot: np.ndarray) -> float:
+    """The least travel from branch ``b`` (closed form ``closed[b]``, turn windows
+    ``turns[b]``) to any free branch of waypoint ``other`` (``free[other]``: its free
+    closed forms), summed from :func:`_joint_terms` in joint order, as the general kernel
+    sums it. Each free closed-form branch's best turn copy takes each turned joint's best
+    window: addition is monotonic, so that sum is the least of its copies' sums exactly."""
     best = np.inf
-    for d in range(len(free)):
-        if not free[d]:
+    c = closed[b]
+    for d in range(free.shape[1]):
+        if not free[other, d]:
             continue
         total = 0.0
         for j in range(term.shape[2]):
             t = slot[j]
-            total += term[c, d, j, 0 if t < 0 else windows[t]]
+            total += term[c, d, j, 0 if t < 0 else turns[b, t]]
         best = min(best, total)
     return best
 
@@ -222,13 +226,13 @@ def _turned_travel_summaries(valid: np.ndarray, tables: _TurnTables, closed: np.
                      turned_value[i + 1], window_ok[i + 1], slot, weights, term)
         for a in range(len(closed)):
             if valid[i, a]:
-                least = _least_over(term, closed[a], turns[a], free[i + 1], slot)
+                least = _least_over(term, closed, turns, a, free, i + 1, slot)
                 leaving[i, a] = min(least / scale, 1.0)
         _joint_terms(fixed[i + 1], turned_value[i + 1], window_ok[i + 1], fixed[i],
                      turned_value[i], window_ok[i], slot, weights, term)
         for b in range(len(closed)):
             if valid[i + 1, b]:
-                least = _least_over(term, closed[b], turns[b], free[i], slot)
+                least = _least_over(term, closed, turns, b, free, i, slot)
                 arriving[i + 1, b] = min(least / scale, 1.0)
 
 
