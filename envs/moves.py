@@ -408,13 +408,17 @@ def _onward_travel(here: np.ndarray, there: np.ndarray, rows: np.ndarray, target
                    weights: np.ndarray, out: np.ndarray) -> None:
     """``out[l, a, b]`` (L, K, K): per line l the travel from ``here[l, a]`` to
     ``there[l, b]`` where ``rows[l, a]`` and ``targets[l, b]``, summed as :func:`_price`
-    sums it (Σ_j w_j|Δq_j| in joint order), +inf elsewhere; ``rows[l, a]`` is cleared
-    where no target is left."""
+    sums it (Σ_j w_j|Δq_j| in joint order), +inf elsewhere in those rows; ``rows[l, a]``
+    is cleared where no target is left. Rows l, a where ``rows[l, a]`` is False are not
+    written: nothing reads them (on a K = 256 arm they are most of the array, which
+    filling cost more than the rest of a survey's bookkeeping)."""
     for line in range(here.shape[0]):
         for a in range(here.shape[1]):
+            if not rows[line, a]:
+                continue
             reached = False
             for b in range(there.shape[1]):
-                if not (rows[line, a] and targets[line, b]):
+                if not targets[line, b]:
                     out[line, a, b] = np.inf
                     continue
                 travel = 0.0
@@ -489,8 +493,8 @@ def least_free_travel(here: np.ndarray, there: np.ndarray, branches: np.ndarray,
     pending = np.array(branches, dtype=np.bool_)
     _onward_travel(here, there, pending, targets, weights, travel)
     if blocked is not None:
-        travel[blocked] = np.inf
-        pending &= np.isfinite(travel).any(axis=-1)
+        travel[blocked & pending[..., None]] = np.inf
+        pending[pending] = np.isfinite(travel[pending]).any(axis=-1)
     last = np.full((lines_count, k), -1, dtype=np.int64)
     while pending.any():
         lines, rows = np.nonzero(pending)

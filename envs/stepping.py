@@ -638,8 +638,9 @@ def _costed_moves(ep, rows, waypoints, pending, costs):
     here, there, travel = _moves(ep, rows, waypoints, targets, pending)
     for m in range(len(rows)):
         for a in range(travel.shape[1]):
-            for b in range(travel.shape[2]):
-                travel[m, a, b] += costs[m, b]
+            if pending[m, a]:  # the only rows :func:`_moves` writes
+                for b in range(travel.shape[2]):
+                    travel[m, a, b] += costs[m, b]
     return here, there, travel
 
 

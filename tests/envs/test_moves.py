@@ -38,7 +38,8 @@ def test_stacked_prices_equal_each_waypoints_edges(env_id):
 @pytest.mark.parametrize("env_id", IDS)
 def test_onward_travel_is_the_priced_travel(env_id):
     # least_free_travel ranks onward moves by a travel-only kernel: bit for bit the
-    # travel that step pays, inf off the rows and targets asked for.
+    # travel that step pays, inf off the targets in the rows asked for, and the rows not
+    # asked for left as they were (nothing reads them).
     from ikbranch_gym.envs.moves import _onward_travel
 
     ladder = _ladder(env_id, seed=2)
@@ -49,12 +50,13 @@ def test_onward_travel_is_the_priced_travel(env_id):
         priced, _ = ladder.motion(here, w + 1)
         rows = ladder.valid[w] & (rng.random(k) < 0.7)
         targets = ladder.valid[w + 1] & (rng.random(k) < 0.7)
-        out, asked = np.empty((1, k, k)), rows[None].copy()
+        out, asked = np.full((1, k, k), -1.0), rows[None].copy()
         _onward_travel(here[None], ladder.candidates[w + 1][None], asked, targets[None],
                        ladder.pricer.cost.weights, out)
         both = rows[:, None] & targets[None]
         np.testing.assert_array_equal(out[0][both], priced[both])
-        assert np.isposinf(out[0][~both]).all()
+        assert np.isposinf(out[0][rows[:, None] & ~targets[None]]).all()
+        assert (out[0][~rows] == -1.0).all()
         np.testing.assert_array_equal(asked[0], rows & targets.any())
 
 
