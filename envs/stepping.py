@@ -616,8 +616,8 @@ def _moves(ep, rows, waypoints, targets, pending):
     """The moves of each line m from the branches of waypoint ``waypoints[m]`` where
     ``pending[m]`` to those of the one after where ``targets[m]``: both ends (``here``,
     ``there``) and their travel (+inf where no move: to a branch outside ``targets``,
-    reconfiguring the arm inside a process segment); branches left with none ask no
-    more."""
+    reconfiguring the arm inside a process segment; the rows of branches not pending are
+    left unwritten); branches left with none ask no more."""
     count, k = pending.shape
     dof = ep.q.shape[1]
     here, there = np.empty((count, k, dof)), np.empty((count, k, dof))
