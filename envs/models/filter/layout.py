@@ -398,14 +398,33 @@ def _symmetric_about(model: mujoco.MjModel, data: mujoco.MjData, geom: int,
                      point: np.ndarray, direction: np.ndarray) -> bool:
     """Whether the world line (``point``, ``direction``) is an axis of symmetry of
     ``geom`` at ``data``'s configuration: a sphere's centre on it, or a capsule's or
-    cylinder's axis along it."""
-    offset = np.linalg.norm(np.cross(data.geom_xpos[geom] - point, direction))
-    if model.geom_type[geom] == _GEOM_SPHERE:
-        return bool(offset <= _ON_LINE)
-    if model.geom_type[geom] in (_GEOM_CAPSULE, _GEOM_CYLINDER):
-        axis = data.geom_xmat[geom].reshape(3, 3)[:, 2]
-        return bool(offset <= _ON_LINE
-                    and np.linalg.norm(np.cross(axis, direction)) <= _ON_LINE)
+    cylinder's axis along it (:func:`_symmetric_line`)."""
+    # Any other geom type as a box: a kind with no axis of symmetry here.
+    kind = {_GEOM_SPHERE: SPHERE, _GEOM_CAPSULE: CAPSULE,
+            _GEOM_CYLINDER: CYLINDER}.get(int(model.geom_type[geom]), BOX)
+    axis = data.geom_xmat[geom].reshape(3, 3)[:, 2]
+    return bool(_symmetric_line(kind, *data.geom_xpos[geom], *axis, *point, *direction))
+
+
+@njit
+def _symmetric_line(kind, cx, cy, cz, nx, ny, nz, px, py, pz, ux, uy, uz):
+    """Whether the line through (px, py, pz) along the unit (ux, uy, uz) is an axis of
+    symmetry of a shape of container ``kind`` centred at (cx, cy, cz) with axis (a
+    plane's normal) (nx, ny, nz): a sphere's centre on it, a capsule's or cylinder's axis
+    along it, a plane's normal along it; no other kind. NaN anywhere: not symmetric."""
+    # |(c − p) × u|: the centre's distance from the line.
+    dx, dy, dz = cx - px, cy - py, cz - pz
+    off = math.sqrt((dy * uz - dz * uy) ** 2 + (dz * ux - dx * uz) ** 2
+                    + (dx * uy - dy * ux) ** 2)
+    # |n × u|: the sine between the shape's axis and the line.
+    tilt = math.sqrt((ny * uz - nz * uy) ** 2 + (nz * ux - nx * uz) ** 2
+                     + (nx * uy - ny * ux) ** 2)
+    if kind == PLANE:
+        return tilt <= _ON_LINE
+    if kind == SPHERE:
+        return off <= _ON_LINE
+    if kind == CAPSULE or kind == CYLINDER:
+        return off <= _ON_LINE and tilt <= _ON_LINE
     return False
 
 
@@ -474,28 +493,12 @@ def _static_levers(k, b, slot_type, slot_pos, slot_rot, pair_lever_own, jnt_line
     centre on it, a capsule's or cylinder's axis along it, a plane's normal along it."""
     cx, cy, cz = slot_pos[b, 0], slot_pos[b, 1], slot_pos[b, 2]
     nx, ny, nz = slot_rot[b, 0, 2], slot_rot[b, 1, 2], slot_rot[b, 2, 2]
-    kind = slot_type[b]
     for j in range(pair_lever_own.shape[0]):
         lever = pair_lever_own[j, k]
-        if lever > 0.0 and (kind == SPHERE or kind == CAPSULE or kind == CYLINDER
-                           or kind == PLANE):
-            px, py, pz = jnt_line[j, 0], jnt_line[j, 1], jnt_line[j, 2]
-            ux, uy, uz = jnt_line[j, 3], jnt_line[j, 4], jnt_line[j, 5]
-            # |(c − p) × u|: the centre's distance from the line (NaN: no world line).
-            dx, dy, dz = cx - px, cy - py, cz - pz
-            off = math.sqrt((dy * uz - dz * uy) ** 2 + (dz * ux - dx * uz) ** 2
-                            + (dx * uy - dy * ux) ** 2)
-            # |n × u|: the sine between the geom's axis (a plane's normal) and the line.
-            tilt = math.sqrt((ny * uz - nz * uy) ** 2 + (nz * ux - nx * uz) ** 2
-                             + (nx * uy - ny * ux) ** 2)
-            if kind == PLANE:
-                symmetric = tilt <= _ON_LINE
-            elif kind == SPHERE:
-                symmetric = off <= _ON_LINE
-            else:
-                symmetric = off <= _ON_LINE and tilt <= _ON_LINE
-            if symmetric:
-                lever = 0.0
+        if lever > 0.0 and _symmetric_line(slot_type[b], cx, cy, cz, nx, ny, nz,
+                                           jnt_line[j, 0], jnt_line[j, 1], jnt_line[j, 2],
+                                           jnt_line[j, 3], jnt_line[j, 4], jnt_line[j, 5]):
+            lever = 0.0
         pair_lever[j, k] = lever
 
 
