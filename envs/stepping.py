@@ -478,12 +478,22 @@ def _least_two_moves(ep, bound, rows, waypoints, pending, costs):
     is checked. Bounds never exceed costs, so the first free costed pick is the cheapest
     (ties: the lower index, as the eager search takes them). Moves that would reconfigure
     the arm inside a process segment are no moves. ``pending`` is consumed."""
-    lines, mid, far, second, asking = _second_moves(ep, rows, waypoints, costs)
-    estimate, known, at = _cost_bounds(ep, rows, waypoints, lines, second, asking)
+    lines, middle, mid, far, targets = _second_moves(ep, rows, waypoints, costs)
+    deep_costs = costs[lines]
+    estimate, known, at = _cost_bounds(ep, rows, waypoints, lines, mid, far, targets,
+                                       deep_costs)
     # The first moves: into the branches of w + 1 with a finite cost bound.
     here, there, first = _moves(ep, rows, waypoints, estimate < np.inf, pending)
     count, k = pending.shape
-    tried = np.zeros((count, k, k), dtype=np.bool_)
+    # What each asking branch has tried, one row per branch that asks (most do not).
+    slot = np.full((count, k), -1, dtype=np.int64)
+    asking = 0
+    for m in range(count):
+        for a in range(k):
+            if pending[m, a]:
+                slot[m, a] = asking
+                asking += 1
+    tried = np.zeros((asking, k), dtype=np.bool_)
     out = np.full((count, k), np.inf)
     while True:
         asked_lines, asked_branches = _pending_rows(pending)
@@ -491,13 +501,10 @@ def _least_two_moves(ep, bound, rows, waypoints, pending, costs):
             break
         columns = np.full(len(asked_lines), -1, dtype=np.int64)
         need = np.zeros((len(lines), k), dtype=np.bool_)
-        if _pick(first, estimate, known, at, tried, asked_lines, asked_branches, pending,
-                 columns, need):  # cost the bounded picks, then pick again
-            found = _search(ep, bound, rows[lines], mid, far, second, need.copy())
-            for i in range(len(lines)):
-                for c in range(k):
-                    if need[i, c]:
-                        estimate[lines[i], c], known[lines[i], c] = found[i, c], True
+        if _pick(first, estimate, known, at, tried, slot, asked_lines, asked_branches,
+                 pending, columns, need):  # cost the bounded picks, then pick again
+            _cost_picks(ep, bound, rows, lines, middle, mid, far, targets, deep_costs,
+                        need, estimate, known)
             continue
         picked = columns >= 0
         asked_lines, asked_branches = asked_lines[picked], asked_branches[picked]
@@ -508,11 +515,58 @@ def _least_two_moves(ep, bound, rows, waypoints, pending, costs):
         for i in range(len(columns)):
             m, a, c = asked_lines[i], asked_branches[i], columns[i]
             if hits[i]:
-                tried[m, a, c] = True
+                tried[slot[m, a], c] = True
             else:
                 out[m, a] = first[m, a, c] + estimate[m, c]
                 pending[m, a] = False
     return out
+
+
+@njit
+def _cost_picks(ep, bound, rows, lines, middle, mid, far, targets, costs, need, estimate,
+                known):
+    """The cost of every pick of :func:`_least_two_moves` to cost (``need[i, c]``, branch
+    c of line ``lines[i]``'s waypoint w + 1): the least travel(c → d) + ``costs[i, d]``
+    over the d its free paths reach, into ``estimate`` (``known``). One search over the
+    picks, each its own line of one branch: only their moves are summed (as
+    :func:`_costed_moves` sums them: travel, a move reconfiguring the arm inside a process
+    segment none, then the cost of its end)."""
+    count, k = need.shape
+    dof = ep.q.shape[1]
+    picks = 0
+    for i in range(count):
+        for c in range(k):
+            picks += need[i, c]
+    owners, branches = np.empty(picks, dtype=np.int64), np.empty(picks, dtype=np.int64)
+    here, there = np.empty((picks, 1, dof)), np.empty((picks, k, dof))
+    ends = np.empty((picks, k), dtype=np.bool_)
+    travel = np.empty((picks, 1, k))
+    asking = np.ones((picks, 1), dtype=np.bool_)
+    q = 0
+    for i in range(count):
+        for c in range(k):
+            if need[i, c]:
+                owners[q], branches[q] = i, c
+                here[q, 0], there[q], ends[q] = mid[i, c], far[i], targets[i]
+                q += 1
+    _onward_travel(here, there, asking, ends, ep.weights, travel)
+    for q in range(picks):
+        i, c = owners[q], branches[q]
+        r = rows[lines[i]]
+        inside = ep.inside[r, middle[i] + 1]
+        left = False
+        for d in range(k):
+            if inside and travel[q, 0, d] < np.inf and move_blocked(
+                    here[q, 0], ep.configuration[c], there[q, d], ep.configuration[d],
+                    ep.limits[r], ep.revolute):
+                travel[q, 0, d] = np.inf
+            travel[q, 0, d] += costs[i, d]
+            left = left or travel[q, 0, d] < np.inf
+        asking[q, 0] = asking[q, 0] and left
+    found = _search(ep, bound, rows[lines[owners]], here, there, travel, asking)
+    for q in range(picks):
+        m = lines[owners[q]]
+        estimate[m, branches[q]], known[m, branches[q]] = found[q, 0], True
 
 
 @njit
@@ -527,9 +581,10 @@ def _rows_of(configurations, lines, branches):
 @njit
 def _second_moves(ep, rows, waypoints, costs):
     """The second moves of :func:`_least_two_moves`, for the lines whose task has
-    waypoint w + 2 (``lines``): both ends (``mid``, ``far``), their travel plus the cost
-    of the end (``second``, +inf where no move) and the free branches of w + 1 with a
-    move left (``asking``)."""
+    waypoint w + 2 (``lines``): their waypoints w + 1 (``middle``), the branches of both
+    ends (``mid``, ``far``) and the free branches of w + 2 with a finite cost
+    (``targets``). Their travel is summed where it is asked for: every move's in
+    :func:`_cost_bounds`, and a move's own row where its cost is searched."""
     count, k = costs.shape
     lines = np.empty(count, dtype=np.int64)
     deep = 0
@@ -539,29 +594,51 @@ def _second_moves(ep, rows, waypoints, costs):
             deep += 1
     lines = lines[:deep]
     middle = waypoints[lines] + 1
-    asking = _free_branches(ep, rows[lines], middle, np.zeros((deep, k)))
-    mid, far, second = _costed_moves(ep, rows[lines], middle, asking, costs[lines])
-    return lines, mid, far, second, asking
+    dof = ep.q.shape[1]
+    mid, far = np.empty((deep, k, dof)), np.empty((deep, k, dof))
+    for i in range(deep):
+        r, w = rows[lines[i]], middle[i]
+        mid[i], far[i] = ep.candidates[r, w], ep.candidates[r, w + 1]
+    targets = _free_branches(ep, rows[lines], middle + 1, costs[lines])
+    return lines, middle, mid, far, targets
 
 
 @njit
-def _cost_bounds(ep, rows, waypoints, lines, second, asking):
+def _cost_bounds(ep, rows, waypoints, lines, mid, far, targets, costs):
     """Per line and branch c of w + 1: what is known of its cost (``estimate``; ``known``
     where it is the cost): for its free branches 0 where w + 1 is the task's last
-    waypoint, else the least of its second moves regardless of paths (+inf where it has
-    none, and for the other branches); ``at``: each line's index in ``lines`` (−1: none)."""
+    waypoint, else the least of its second moves regardless of paths, travel(c → d) +
+    ``costs[i, d]`` over the ``targets`` d it may move to (+inf where it has none, and
+    for the other branches); ``at``: each line's index in ``lines`` (−1: none).
+
+    A second move's travel is summed as :func:`_costed_moves` sums it (Σ_j w_j|Δq_j| in
+    joint order, then the cost of its end), over every d of one c at once with the
+    joints of w + 2 laid out by joint (a loop the compiler vectorises), and only its
+    least is kept."""
     count, k = len(rows), ep.valid.shape[2]
+    dof = ep.q.shape[1]
     estimate = np.full((count, k), np.inf)
     known = np.zeros((count, k), dtype=np.bool_)
     at = np.full(count, -1, dtype=np.int64)
+    weights = ep.weights
+    across = np.empty((dof, k))
+    travel = np.empty(k)
     for i in range(len(lines)):
-        at[lines[i]] = i
+        m = lines[i]
+        r, w = rows[m], waypoints[m] + 1
+        at[m] = i
+        for j in range(dof):
+            for d in range(k):
+                across[j, d] = far[i, d, j]
         for c in range(k):
-            if asking[i, c]:
-                least = np.inf
-                for d in range(k):
-                    least = min(least, second[i, c, d])
-                estimate[lines[i], c] = least
+            if ep.valid[r, w, c] and not ep.endpoint[r, w, c]:
+                travel[:] = 0.0
+                for j in range(dof):
+                    here, weight = mid[i, c, j], weights[j]
+                    for d in range(k):
+                        travel[d] += abs(across[j, d] - here) * weight
+                estimate[m, c] = _least_second(ep, r, w + 1, c, mid[i, c], far[i], travel,
+                                               targets[i], costs[i])
     for m in range(count):
         if at[m] < 0:
             r, w = rows[m], waypoints[m] + 1
@@ -571,19 +648,35 @@ def _cost_bounds(ep, rows, waypoints, lines, second, asking):
     return estimate, known, at
 
 
+@njit(inline="always")
+def _least_second(ep, r, w, c, start, ends, travel, targets, costs):
+    """The least ``travel[d]`` + ``costs[d]`` over the ``targets`` d of waypoint ``w``
+    (row ``r``) that branch ``c`` (at ``start``) may move to: none that reconfigures the
+    arm inside a process segment; +inf where none is left."""
+    inside = ep.inside[r, w]
+    least = np.inf
+    for d in range(len(travel)):
+        if targets[d] and not (inside and move_blocked(
+                start, ep.configuration[c], ends[d], ep.configuration[d], ep.limits[r],
+                ep.revolute)):
+            least = min(least, travel[d] + costs[d])
+    return least
+
+
 @njit
-def _pick(first, estimate, known, at, tried, lines, branches, pending, columns, need):
+def _pick(first, estimate, known, at, tried, slot, lines, branches, pending, columns, need):
     """One round's picks of :func:`_least_two_moves`: per asking (``lines[i]``,
     ``branches[i]``) its cheapest untried c (ties: the lower index) into ``columns[i]``
     where c's cost is known; where it is a bound, ``need[at[line], c]`` instead (True is
-    returned) and ``columns[i]`` stays −1; none left: the branch asks no more."""
+    returned) and ``columns[i]`` stays −1; none left: the branch asks no more.
+    ``tried[slot[m, a], c]``: branch a of line m found its path to c colliding."""
     costing = False
     for i in range(len(lines)):
         m, a = lines[i], branches[i]
         best, pick = np.inf, -1
         for c in range(first.shape[2]):
             travel = first[m, a, c]
-            if not travel < np.inf or tried[m, a, c]:
+            if not travel < np.inf or tried[slot[m, a], c]:
                 continue
             value = travel + estimate[m, c]
             if value < best:
