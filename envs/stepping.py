@@ -552,17 +552,10 @@ def _cost_picks(ep, bound, rows, lines, middle, mid, far, targets, costs, need, 
     _onward_travel(here, there, asking, ends, ep.weights, travel)
     for q in range(picks):
         i, c = owners[q], branches[q]
-        r = rows[lines[i]]
-        inside = ep.inside[r, middle[i] + 1]
-        left = False
+        asking[q, 0] = asking[q, 0] and _block_moves_from(
+            ep, rows[lines[i]], middle[i] + 1, here[q, 0], c, there[q], travel[q, 0])
         for d in range(k):
-            if inside and travel[q, 0, d] < np.inf and move_blocked(
-                    here[q, 0], ep.configuration[c], there[q, d], ep.configuration[d],
-                    ep.limits[r], ep.revolute):
-                travel[q, 0, d] = np.inf
             travel[q, 0, d] += costs[i, d]
-            left = left or travel[q, 0, d] < np.inf
-        asking[q, 0] = asking[q, 0] and left
     found = _search(ep, bound, rows[lines[owners]], here, there, travel, asking)
     for q in range(picks):
         m = lines[owners[q]]
@@ -652,13 +645,11 @@ def _cost_bounds(ep, rows, waypoints, lines, mid, far, targets, costs):
 def _least_second(ep, r, w, c, start, ends, travel, targets, costs):
     """The least ``travel[d]`` + ``costs[d]`` over the ``targets`` d of waypoint ``w``
     (row ``r``) that branch ``c`` (at ``start``) may move to: none that reconfigures the
-    arm inside a process segment; +inf where none is left."""
-    inside = ep.inside[r, w]
+    arm inside a process segment; +inf where none is left. ``travel`` is overwritten."""
+    _block_moves_from(ep, r, w, start, c, ends, travel)
     least = np.inf
     for d in range(len(travel)):
-        if targets[d] and not (inside and move_blocked(
-                start, ep.configuration[c], ends[d], ep.configuration[d], ep.limits[r],
-                ep.revolute)):
+        if targets[d]:
             least = min(least, travel[d] + costs[d])
     return least
 
@@ -779,23 +770,31 @@ def _block_onward(ep, rows, waypoints, here, there, travel, pending):
     """Onward moves (branch a of waypoint ``waypoints[m]`` → branch b of the one after)
     that would reconfigure the arm inside a process segment are no moves (+inf travel); a
     branch left with none onward asks no more."""
-    k = travel.shape[1]
     for m in range(len(rows)):
         r = rows[m]
         w = waypoints[m] + 1
         if not ep.inside[r, w]:
             continue
-        for a in range(k):
-            if not pending[m, a]:
-                continue
-            left = False
-            for b in range(k):
-                if travel[m, a, b] < np.inf and move_blocked(
-                        here[m, a], ep.configuration[a], there[m, b], ep.configuration[b],
-                        ep.limits[r], ep.revolute):
-                    travel[m, a, b] = np.inf
-                left = left or travel[m, a, b] < np.inf
-            pending[m, a] = left
+        for a in range(travel.shape[1]):
+            if pending[m, a]:
+                pending[m, a] = _block_moves_from(ep, r, w, here[m, a], a, there[m],
+                                                  travel[m, a])
+
+
+@njit(inline="always")
+def _block_moves_from(ep, r, w, start, c, ends, travel):
+    """The moves from branch ``c`` (at ``start``) to the branches of row ``r``'s waypoint
+    ``w`` (at ``ends``) that would reconfigure the arm inside a process segment are no
+    moves: +inf in ``travel`` (K). Returns whether a move with a finite travel is left."""
+    inside = ep.inside[r, w]
+    left = False
+    for d in range(len(travel)):
+        if inside and travel[d] < np.inf and move_blocked(
+                start, ep.configuration[c], ends[d], ep.configuration[d], ep.limits[r],
+                ep.revolute):
+            travel[d] = np.inf
+        left = left or travel[d] < np.inf
+    return left
 
 
 @njit
