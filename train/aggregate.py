@@ -224,7 +224,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, help="write the aggregate as JSON here")
     parser.add_argument("--publish", action="store_true",
                         help="archive the root's finished trials in docs/results/sweep/trials, "
-                             "aggregate the archive, copy the representative models into "
+                             "(trials of a raised budget staged until they cover the row's "
+                             "seeds), aggregate the archive, copy the representative models into "
                              "models/, plot, and render docs/results.md and the README's "
                              "results table (train/publish.py)")
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
@@ -249,9 +250,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.out:
         args.out.write_text(json.dumps(records, indent=1) + "\n")
     if args.publish:
-        from ikbranch_gym.train.publish import publish, write_readme, write_results
+        from ikbranch_gym.train.publish import prune_staged, publish, write_readme, write_results
 
         written = publish(args.root, records)
+        prune_staged()
         print(f"published {len(written)} files; {write_results()}; {write_readme(records)}")
     return 0
 

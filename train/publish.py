@@ -38,10 +38,11 @@ from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
+import yaml
 
 from ikbranch_gym.agents import PaperRule, RecedingDP
 from ikbranch_gym.envs.kinematics import INDUSTRIAL_ARM_NAMES
-from ikbranch_gym.train.sweep import ARCHIVE, env_name, run_dir
+from ikbranch_gym.train.sweep import ARCHIVE, env_name, run_dir, staged_root
 
 ROOT = Path(__file__).resolve().parent.parent
 #: The single-seed records of the earlier ids (``python -m train.results``) and their plots.
@@ -142,27 +143,83 @@ def plot_curves(env_id: str, record: dict[str, Any], path: Path) -> bool:
 #: What the archive keeps of a finished trial's run directory (no checkpoints, no model:
 #: the representative seed's model goes to ``models/``).
 ARCHIVED = ("evaluation.json", "evaluations.npz", "config.yml", "command.txt", "versions.yml")
+#: A run directory's trained model: a staged trial keeps it (it may become its row's
+#: representative).
+MODEL = "model.zip"
+
+
+def _budgets(root: Path, env: str, algo: str) -> dict[int, int]:
+    """seed -> training steps of the finished trials of ``env``/``algo`` under ``root``."""
+    return {int(done.parent.name.removeprefix("seed")):
+            int(json.loads(done.read_text())["timesteps"])
+            for done in (root / "runs" / env / algo).glob("seed*/evaluation.json")}
+
+
+def _copy_trial(directory: Path, target: Path, names: Sequence[str]) -> list[Path]:
+    """Replace ``target``'s records by ``directory``'s ``names`` (those it has)."""
+    target.mkdir(parents=True, exist_ok=True)
+    written = []
+    for name in (*ARCHIVED, MODEL):
+        (target / name).unlink(missing_ok=True)
+    for name in names:
+        if (directory / name).exists():
+            shutil.copyfile(directory / name, target / name)
+            written.append(target / name)
+    return written
 
 
 def archive(root: Path, store: Path = ARCHIVE) -> list[Path]:
     """Copy every finished trial's records from the sweep root ``root`` into ``store``
     (the same layout, so ``train.aggregate.aggregate(store)`` reads it); returns the files
-    written. A trial counts as finished once its ``evaluation.json`` exists."""
+    written. A trial counts as finished once its ``evaluation.json`` exists.
+
+    Per env and algorithm, trials of one budget replace the archived ones once trials of
+    that budget (from ``root``, staged or archived) cover every archived seed; until then
+    they are staged (``train.sweep.staged_root(store)``, with their models), so a few
+    seeds of a raised budget neither replace nor mix with the row of the budget before.
+    A staged trial that joins its row leaves its model behind for :func:`publish`."""
     written = []
     for path in sorted((root / "baselines").glob("*.json")):
         target = store / "baselines" / path.name
         target.parent.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(path, target)
         written.append(target)
-    for done in sorted((root / "runs").glob("*/*/seed*/evaluation.json")):
-        directory = done.parent
-        target = store / directory.relative_to(root)
-        target.mkdir(parents=True, exist_ok=True)
-        for name in ARCHIVED:
-            if (directory / name).exists():
-                shutil.copyfile(directory / name, target / name)
-                written.append(target / name)
+    staged = staged_root(store)
+    for group in sorted({done.parent.parent for done in (root / "runs").glob(
+            "*/*/seed*/evaluation.json")}):
+        env, algo = group.parent.name, group.name
+        trials, archived = _budgets(root, env, algo), _budgets(store, env, algo)
+        waiting = _budgets(staged, env, algo)
+        for steps in sorted(set(trials.values())):
+            covered = {seed for budgets in (trials, waiting, archived)
+                       for seed, held in budgets.items() if held == steps}
+            ours = [seed for seed, held in trials.items() if held == steps]
+            if not set(archived) <= covered:
+                for seed in ours:
+                    written += _copy_trial(group / f"seed{seed}", staged / "runs" / env / algo
+                                           / f"seed{seed}", (*ARCHIVED, MODEL))
+                continue
+            for seed in sorted(seed for seed, held in waiting.items() if held == steps
+                               and seed not in ours):
+                source = staged / "runs" / env / algo / f"seed{seed}"
+                written += _copy_trial(source, store / "runs" / env / algo / f"seed{seed}",
+                                       ARCHIVED)
+                (source / "evaluation.json").unlink()  # joined: only its model stays
+            for seed in ours:
+                written += _copy_trial(group / f"seed{seed}",
+                                       store / "runs" / env / algo / f"seed{seed}", ARCHIVED)
     return written
+
+
+def prune_staged(store: Path = ARCHIVE) -> list[Path]:
+    """Remove the staged directories of trials that joined their rows (only their models
+    were left, for :func:`publish`); returns the directories removed."""
+    removed = []
+    for model in sorted(staged_root(store).glob(f"runs/*/*/seed*/{MODEL}")):
+        if not (model.parent / "evaluation.json").exists():
+            shutil.rmtree(model.parent)
+            removed.append(model.parent)
+    return removed
 
 
 #: Marks a learned row taken from the previous aggregate (:func:`carry_over`).
@@ -237,6 +294,20 @@ def _published_already(target: Path, trial: dict[str, Any]) -> bool:
             and published["oracle"]["returns"] == trial["oracle"]["returns"])
 
 
+def _model(root: Path, store: Path, env_id: str, algo: str, seed: int,
+           steps: int) -> Path | None:
+    """The model of a trial of ``steps``: in the sweep root, else left staged in the
+    archive by a trial that joined its row; None where neither holds it (a model of
+    another budget, by its ``config.yml``, is another trial's)."""
+    for directory in (run_dir(root, env_id, algo, seed),
+                      run_dir(staged_root(store), env_id, algo, seed)):
+        model, config = directory / MODEL, directory / "config.yml"
+        if model.exists() and config.exists() and int(
+                yaml.safe_load(config.read_text())["hyperparams"]["n_timesteps"]) == steps:
+            return model
+    return None
+
+
 def publish(root: Path, records: dict[str, dict[str, Any]], *, out: Path = SWEEP_RESULTS,
             models: Path = MODELS, store: Path = ARCHIVE) -> list[Path]:
     """Copy the representative models (from the sweep root ``root``) and records (from
@@ -258,12 +329,13 @@ def publish(root: Path, records: dict[str, dict[str, Any]], *, out: Path = SWEEP
             target = out / name / f"{algo}.json"
             if _published_already(target, trial):  # the committed model played these episodes
                 continue
-            trained = run_dir(root, env_id, algo, seed) / "model.zip"
-            if not trained.exists():
+            trained = _model(root, store, env_id, algo, seed, trial["timesteps"])
+            if trained is None:
                 raise FileNotFoundError(
-                    f"{env_id} {algo}: the representative seed {seed}'s model is not at "
-                    f"{trained}; run `python -m train.sweep --env {env_id} --algo {algo} "
-                    f"--seeds {seed} --archive /nonexistent` to train it again")
+                    f"{env_id} {algo}: the representative seed {seed}'s model is neither "
+                    f"under {root} nor staged in {store}; run `python -m train.sweep --env "
+                    f"{env_id} --algo {algo} --seeds {seed} --archive /nonexistent` to "
+                    "train it again")
             trial["command"] = _portable(_started_by(directory / "command.txt"), root)
             copies.append((trained, models / name / f"{algo}.zip", trial, target))
     written = []

@@ -20,7 +20,11 @@ same command again resumes a sweep (a record of another budget is no result of t
 it is trained again, into a root of its own). Across machines and runs:
 ``python -m train.aggregate --publish`` archives every finished trial's records (not its
 checkpoints) in the repository, ``docs/results/sweep/trials`` (``ARCHIVE``, laid out as a
-root), and a trial archived there is skipped too.
+root), and a trial archived there is skipped too. A trial of another budget than the
+archived row's seeds (the budget was raised) waits in ``<archive>/staged`` (``STAGED``,
+laid out as a root, its model kept) until trials of its budget cover every seed of the
+row, which they then replace; a sweep skips a staged trial as well, so a long sweep can
+be spread over runs, a few seeds at a time, publishing after each.
 """
 
 from __future__ import annotations
@@ -44,6 +48,9 @@ ARCHIVE = ROOT / "docs" / "results" / "sweep" / "trials"
 #: Held-out tasks per evaluation (at least 200 per row).
 EPISODES = 200
 BASELINES_TRIAL = "baselines"
+#: The archive's root of trials waiting for the rest of their budget's seeds
+#: (``train.publish.archive``).
+STAGED = "staged"
 
 
 def env_name(env_id: str) -> str:
@@ -56,6 +63,11 @@ def run_dir(root: Path, env_id: str, algo: str, seed: int) -> Path:
 
 def baselines_path(root: Path, env_id: str) -> Path:
     return Path(root) / "baselines" / f"{env_name(env_id)}.json"
+
+
+def staged_root(store: Path) -> Path:
+    """Where an archive keeps the trials of a budget its rows do not have yet."""
+    return Path(store) / STAGED
 
 
 def done_path(spec: dict[str, Any], root: Path | None = None) -> Path:
@@ -87,11 +99,12 @@ def budget(spec: dict[str, Any]) -> int:
 
 
 def finished(spec: dict[str, Any]) -> Path | None:
-    """The record of ``spec``'s trial if it is done: in its root, or archived. A training
-    trial's record counts only at the trial's budget: a record of another number of steps
-    (the budget changed since) is no result of this trial."""
+    """The record of ``spec``'s trial if it is done: in its root, or archived (or staged
+    there). A training trial's record counts only at the trial's budget: a record of
+    another number of steps (the budget changed since) is no result of this trial."""
     steps = None if spec["algo"] == BASELINES_TRIAL else budget(spec)
-    for root in (spec["root"], spec.get("archive", ARCHIVE)):
+    store = Path(spec.get("archive", ARCHIVE))
+    for root in (spec["root"], store, staged_root(store)):
         path = done_path(spec, root)
         if path.exists() and (steps is None
                               or json.loads(path.read_text())["timesteps"] == steps):

@@ -111,34 +111,87 @@ def test_tiny_sweep_writes_run_directories_and_resumes(tmp_path):
         ray.shutdown()
 
 
+def _policy(returns, successes=None) -> dict:
+    """A policy's record of an evaluation: every task a success unless ``successes``."""
+    return {"returns": [float(r) for r in returns],
+            "successes": [True] * len(returns) if successes is None else list(successes),
+            "decision_ms": 1.0}
+
+
 def _synthetic_root(tmp_path, scores: np.ndarray, rival: np.ndarray,
                     oracle: np.ndarray | None = None):
     """A sweep root whose seeds of ``ppo`` score ``scores`` (seeds, T) per task: oracle
     return ``oracle`` (default 0), random 10 less, so R = oracle + 10·(score − 1);
     ``paper_rule`` scores ``rival``."""
-    tasks = scores.shape[1]
     env = "IKBranch/ToolTransfer-v1"
-
-    def policy(returns, successes=None):
-        return {"returns": [float(r) for r in returns],
-                "successes": list(successes or [True] * tasks), "decision_ms": 1.0}
-
-    oracle = np.zeros(tasks) if oracle is None else oracle
-    baselines = {"dp_oracle": policy(oracle), "random": policy(oracle - 10.0),
-                 "paper_rule": policy(oracle + 10 * (rival - 1)), "receding_dp": policy(oracle)}
+    oracle = np.zeros(scores.shape[1]) if oracle is None else oracle
+    baselines = {"dp_oracle": _policy(oracle), "random": _policy(oracle - 10.0),
+                 "paper_rule": _policy(oracle + 10 * (rival - 1)), "receding_dp": _policy(oracle)}
     record = {"env": env, "task_seed": 0, "env_kwargs": {}, "policies": baselines}
     path = sweep.baselines_path(tmp_path, env)
     path.parent.mkdir(parents=True)
     path.write_text(json.dumps(record))
     for seed, row in enumerate(scores):
-        successes = [bool(s > 0.5) for s in row]
-        trial = {"env": env, "algo": "ppo", "seed": seed, "timesteps": 1000,
-                 "train_minutes": 1.0 + seed, "oracle": policy(oracle),
-                 "policy": policy(oracle + 10 * (row - 1), successes)}
-        directory = sweep.run_dir(tmp_path, env, "ppo", seed)
-        directory.mkdir(parents=True)
-        (directory / "evaluation.json").write_text(json.dumps(trial))
+        _synthetic_trial(tmp_path, env, seed, row, oracle)
     return env
+
+
+def _synthetic_trial(root, env: str, seed: int, scores: np.ndarray, oracle: np.ndarray,
+                     steps: int = 1000) -> Path:
+    """A finished ``ppo`` trial of ``steps`` under ``root`` scoring ``scores`` per task
+    (returns as :func:`_synthetic_root`'s), its config saying its budget; its directory."""
+    trial = {"env": env, "algo": "ppo", "seed": seed, "timesteps": steps,
+             "train_minutes": 1.0 + seed, "oracle": _policy(oracle),
+             "policy": _policy(oracle + 10 * (scores - 1), [bool(s > 0.5) for s in scores])}
+    directory = sweep.run_dir(root, env, "ppo", seed)
+    directory.mkdir(parents=True)
+    (directory / "config.yml").write_text(f"hyperparams:\n  n_timesteps: {steps}\n")
+    (directory / "command.txt").write_text(f"python -m train --algo ppo --seed {seed}\n")
+    (directory / "evaluation.json").write_text(json.dumps(trial))
+    return directory
+
+
+def test_a_raised_budget_waits_staged_until_its_seeds_cover_the_row(tmp_path):
+    # A sweep of a raised budget spread over runs, two seeds a run: its trials neither
+    # replace nor mix with the row of the budget before until they cover all its seeds;
+    # then they replace it, and a representative trained in a run whose root is gone is
+    # published from the model its staged trial left.
+    store, oracle = tmp_path / "archive", np.zeros(20)
+    env = _synthetic_root(tmp_path / "first", np.full((3, 20), 0.5), rival=np.full(20, 0.2))
+    publish.archive(tmp_path / "first", store)
+    before = json.dumps(aggregate.aggregate(store))
+    second, third = tmp_path / "second", tmp_path / "third"
+    for seed, score in ((0, 0.8), (1, 0.9)):
+        trial = _synthetic_trial(second, env, seed, np.full(20, score), oracle, steps=2000)
+        (trial / "model.zip").write_bytes(f"seed {seed} at 2000".encode())
+    publish.archive(second, store)
+    assert json.dumps(aggregate.aggregate(store)) == before
+    staged = sweep.staged_root(store)
+    spec = sweep.trials([env], ["ppo"], [0], tmp_path / "elsewhere", 20, 2000, {}, store)[1]
+    assert sweep.finished(spec) == sweep.done_path(spec, staged)
+    assert sweep.finished({**spec, "seed": 2}) is None
+    assert sweep.finished({**spec, "timesteps": 1000}) == sweep.done_path(spec, store)
+    # The row of the budget before is published from a root holding the raised budget's
+    # models: those are other trials, not its representative's.
+    with pytest.raises(FileNotFoundError, match="representative seed 0"):
+        publish.publish(second, json.loads(before), out=tmp_path / "out",
+                        models=tmp_path / "models", store=store)
+    _synthetic_trial(third, env, 2, np.full(20, 0.7), oracle, steps=2000)
+    publish.archive(third, store)
+    records = aggregate.aggregate(store)
+    row = records[env]["policies"]["ppo"]
+    assert row["seeds"] == [0, 1, 2] and row["timesteps"] == [2000]
+    assert row["representative_seed"] == 0  # IQM 0.8 of 0.7, 0.8, 0.9
+    assert sweep.finished(spec) == sweep.done_path(spec, store)
+    assert not (staged / "runs" / "ToolTransfer-v1" / "ppo" / "seed0" / "evaluation.json"
+                ).exists()
+    publish.publish(third, records, out=tmp_path / "out", models=tmp_path / "models",
+                    store=store)
+    assert (tmp_path / "models" / "ToolTransfer-v1" / "ppo.zip").read_bytes() == (
+        b"seed 0 at 2000")
+    removed = publish.prune_staged(store)
+    assert [p.name for p in removed] == ["seed0", "seed1"]
+    assert not list(staged.glob("runs/*/*/seed*/*"))
 
 
 def test_a_cloned_rows_oracle_episodes_are_published_beside_its_steps(tmp_path):
@@ -380,7 +433,6 @@ def test_publishing_again_keeps_a_reproduced_representative_and_writes_nothing_h
     records = aggregate.aggregate(root)
     seed = records[env]["policies"]["ppo"]["representative_seed"]
     trial = sweep.run_dir(root, env, "ppo", seed)
-    (trial / "command.txt").write_text("python -m train --seed 0\n")
     out, models = tmp_path / "out", tmp_path / "models"
     # A representative whose model is missing: an error before any file is written.
     with pytest.raises(FileNotFoundError, match="representative seed"):
@@ -444,10 +496,14 @@ def test_the_trial_archive_is_committed_not_ignored():
     # trial stayed out of git, and the next checkout could not re-aggregate them.
     import subprocess
 
-    probe = sweep.run_dir(sweep.ARCHIVE, "IKBranch/ToolTransfer-v1", "ppo", 0) / "evaluation.json"
-    result = subprocess.run(["git", "check-ignore", "--no-index", "-q", str(probe)],
-                            cwd=sweep.ROOT, check=False)
-    assert result.returncode == 1, f"{probe} is ignored by .gitignore"
+    # A staged trial's model is committed too: the run that trained it may be gone.
+    for probe in (sweep.run_dir(sweep.ARCHIVE, "IKBranch/ToolTransfer-v1", "ppo", 0)
+                  / "evaluation.json",
+                  sweep.run_dir(sweep.staged_root(sweep.ARCHIVE), "IKBranch/ToolTransfer-v1",
+                                "ppo", 0) / publish.MODEL):
+        result = subprocess.run(["git", "check-ignore", "--no-index", "-q", str(probe)],
+                                cwd=sweep.ROOT, check=False)
+        assert result.returncode == 1, f"{probe} is ignored by .gitignore"
 
 
 def test_a_sweeps_runs_land_under_the_working_directory_by_default():
