@@ -95,8 +95,8 @@ def _masked(masks: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 
 def vector(env_id: str, num_envs: int, seconds: float, warmup: float,
            oracle: bool = False) -> float:
-    """Steps/s (per sub-env) of the native vector env: random masked actions, or with
-    ``oracle`` dp_oracle's plans (their planning time not counted)."""
+    """Steps/s of the native vector env, every sub-env's step counted: random masked
+    actions, or with ``oracle`` dp_oracle's plans (their planning time not counted)."""
     from ikbranch_gym.agents.dp import LazyLadder
 
     venv = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point",
@@ -139,7 +139,7 @@ def vector(env_id: str, num_envs: int, seconds: float, warmup: float,
 
 
 def async_pair(env_id: str, seconds: float, warmup: float) -> float:
-    """Steps/s (per sub-env) of ``make_vec(..., "async")`` with two workers."""
+    """Steps/s of ``make_vec(..., "async")`` with two workers, both sub-envs' steps counted."""
     venv = gym.make_vec(env_id, num_envs=2, vectorization_mode="async")
     rng = np.random.default_rng(0)
     masked = env_id in envs.ENV_SPECS
