@@ -199,12 +199,12 @@ def archive(root: Path, store: Path = ARCHIVE) -> list[Path]:
                     written += _copy_trial(group / f"seed{seed}", staged / "runs" / env / algo
                                            / f"seed{seed}", (*ARCHIVED, MODEL))
                 continue
-            for seed in sorted(seed for seed, held in waiting.items() if held == steps
-                               and seed not in ours):
+            for seed in sorted(seed for seed, held in waiting.items() if held == steps):
                 source = staged / "runs" / env / algo / f"seed{seed}"
-                written += _copy_trial(source, store / "runs" / env / algo / f"seed{seed}",
-                                       ARCHIVED)
-                (source / "evaluation.json").unlink()  # joined: only its model stays
+                if seed not in ours:  # (else the root's trial of that seed replaces it)
+                    written += _copy_trial(source, store / "runs" / env / algo
+                                           / f"seed{seed}", ARCHIVED)
+                (source / "evaluation.json").unlink()  # joined: only its model counts
             for seed in ours:
                 written += _copy_trial(group / f"seed{seed}",
                                        store / "runs" / env / algo / f"seed{seed}", ARCHIVED)
@@ -212,13 +212,13 @@ def archive(root: Path, store: Path = ARCHIVE) -> list[Path]:
 
 
 def prune_staged(store: Path = ARCHIVE) -> list[Path]:
-    """Remove the staged directories of trials that joined their rows (only their models
-    were left, for :func:`publish`); returns the directories removed."""
+    """Remove the staged directories of trials that joined their rows (their models were
+    left for :func:`publish`); returns the directories removed."""
     removed = []
-    for model in sorted(staged_root(store).glob(f"runs/*/*/seed*/{MODEL}")):
-        if not (model.parent / "evaluation.json").exists():
-            shutil.rmtree(model.parent)
-            removed.append(model.parent)
+    for directory in sorted(staged_root(store).glob("runs/*/*/seed*")):
+        if not (directory / "evaluation.json").exists():
+            shutil.rmtree(directory)
+            removed.append(directory)
     return removed
 
 

@@ -177,14 +177,20 @@ def test_a_raised_budget_waits_staged_until_its_seeds_cover_the_row(tmp_path):
         publish.publish(second, json.loads(before), out=tmp_path / "out",
                         models=tmp_path / "models", store=store)
     _synthetic_trial(third, env, 2, np.full(20, 0.7), oracle, steps=2000)
+    # Seed 1 trained again at the raised budget: its new record joins the row, not the
+    # staged one.
+    again = _synthetic_trial(third, env, 1, np.full(20, 0.85), oracle, steps=2000)
+    (again / "model.zip").write_bytes(b"seed 1 again")
     publish.archive(third, store)
     records = aggregate.aggregate(store)
     row = records[env]["policies"]["ppo"]
     assert row["seeds"] == [0, 1, 2] and row["timesteps"] == [2000]
-    assert row["representative_seed"] == 0  # IQM 0.8 of 0.7, 0.8, 0.9
+    assert row["representative_seed"] == 0  # IQM 0.79 of 0.7, 0.8, 0.85
     assert sweep.finished(spec) == sweep.done_path(spec, store)
-    assert not (staged / "runs" / "ToolTransfer-v1" / "ppo" / "seed0" / "evaluation.json"
-                ).exists()
+    assert not list(staged.glob("runs/*/*/seed*/evaluation.json"))
+    assert json.loads(sweep.done_path({**spec, "seed": 1}, store).read_text())[
+        "policy"]["returns"] == json.loads((again / "evaluation.json").read_text())[
+        "policy"]["returns"]
     publish.publish(third, records, out=tmp_path / "out", models=tmp_path / "models",
                     store=store)
     assert (tmp_path / "models" / "ToolTransfer-v1" / "ppo.zip").read_bytes() == (
