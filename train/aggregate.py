@@ -233,10 +233,13 @@ def main(argv: list[str] | None = None) -> int:
         from ikbranch_gym.train.publish import SWEEP_RESULTS, archive, carry_over
         from ikbranch_gym.train.sweep import ARCHIVE
 
-        archive(args.root)
-        published = SWEEP_RESULTS / "aggregate.json"
-        records = carry_over(aggregate(ARCHIVE), json.loads(published.read_text())
-                             if published.exists() else {})
+        path = SWEEP_RESULTS / "aggregate.json"
+        published = json.loads(path.read_text()) if path.exists() else {}
+        left_out: list[tuple[Path, int, int]] = []
+        archive(args.root, published=published, left_out=left_out)
+        for directory, steps, row_steps in left_out:
+            print(f"left out {directory}: {steps:,} steps, where its row has {row_steps:,}")
+        records = carry_over(aggregate(ARCHIVE), published)
     else:
         records = aggregate(args.root)
     for env_id, record in records.items():

@@ -32,6 +32,7 @@ same aggregate (:func:`write_readme`).
 from __future__ import annotations
 
 import json
+import re
 import shutil
 from collections.abc import Sequence
 from pathlib import Path
@@ -103,12 +104,18 @@ def _started_by(record: Path) -> str:
 
 def _portable(command: str, root: Path) -> str:
     """A recorded command as a reader types it: ``python -m …``, with the run directory
-    under the default sweep root ``runs/sweep`` (wherever the sweep ``root`` was)."""
+    under the default sweep root ``runs/sweep`` (wherever the sweep ``root`` was, on this
+    machine or, for a staged trial, another)."""
     words = command.split()
     if len(words) > 1 and words[1] == "-m":
         words[0] = "python"
-    return " ".join(words).replace(f"{Path(root).resolve()}/", "runs/sweep/").replace(
+    text = " ".join(words).replace(f"{Path(root).resolve()}/", "runs/sweep/").replace(
         f"{ROOT}/", "")
+    return _RUN_DIR.sub(r"--run-dir runs/sweep/\1", text)
+
+
+#: A sweep trial's ``--run-dir``, wherever its root was: the part from ``runs/<EnvName>``.
+_RUN_DIR = re.compile(r"--run-dir \S*?/?(runs/[^/\s]+/[^/\s]+/seed\d+)(?=\s|$)")
 
 
 def plot_curves(env_id: str, record: dict[str, Any], path: Path) -> bool:
@@ -140,11 +147,12 @@ def plot_curves(env_id: str, record: dict[str, Any], path: Path) -> bool:
     return True
 
 
-#: What the archive keeps of a finished trial's run directory (no checkpoints, no model:
-#: the representative seed's model goes to ``models/``).
-ARCHIVED = ("evaluation.json", "evaluations.npz", "config.yml", "command.txt", "versions.yml")
+#: What the archive keeps of a finished trial's run directory (no checkpoints; its model
+#: only while the trial is staged: a row's representative model goes to ``models/``).
+#: The record that marks the trial finished comes last.
+ARCHIVED = ("evaluations.npz", "config.yml", "command.txt", "versions.yml", "evaluation.json")
 #: A run directory's trained model: a staged trial keeps it (it may become its row's
-#: representative).
+#: representative once its budget's trials join the row).
 MODEL = "model.zip"
 
 
@@ -156,10 +164,11 @@ def _budgets(root: Path, env: str, algo: str) -> dict[int, int]:
 
 
 def _copy_trial(directory: Path, target: Path, names: Sequence[str]) -> list[Path]:
-    """Replace ``target``'s records by ``directory``'s ``names`` (those it has)."""
+    """Replace ``target``'s records by ``directory``'s ``names`` (those it has), the
+    finishing record last."""
     target.mkdir(parents=True, exist_ok=True)
     written = []
-    for name in (*ARCHIVED, MODEL):
+    for name in ("evaluation.json", *ARCHIVED, MODEL):
         (target / name).unlink(missing_ok=True)
     for name in names:
         if (directory / name).exists():
@@ -168,57 +177,88 @@ def _copy_trial(directory: Path, target: Path, names: Sequence[str]) -> list[Pat
     return written
 
 
-def archive(root: Path, store: Path = ARCHIVE) -> list[Path]:
+def _row_seeds(published: dict[str, dict[str, Any]] | None) -> dict[tuple[str, str], Any]:
+    """(env name, algo) -> (seeds, budgets) of every learned row of a published aggregate."""
+    return {(env_name(env_id), algo): (set(row["seeds"]), set(row.get("timesteps") or ()))
+            for env_id, record in (published or {}).items()
+            for algo, row in record["policies"].items() if row.get("seeds")}
+
+
+def archive(root: Path, store: Path = ARCHIVE,
+            published: dict[str, dict[str, Any]] | None = None,
+            left_out: list[tuple[Path, int, int]] | None = None) -> list[Path]:
     """Copy every finished trial's records from the sweep root ``root`` into ``store``
     (the same layout, so ``train.aggregate.aggregate(store)`` reads it); returns the files
     written. A trial counts as finished once its ``evaluation.json`` exists.
 
-    Per env and algorithm, trials of one budget replace the archived ones once trials of
-    that budget (from ``root``, staged or archived) cover every archived seed; until then
-    they are staged (``train.sweep.staged_root(store)``, with their models), so a few
-    seeds of a raised budget neither replace nor mix with the row of the budget before.
-    A staged trial that joins its row leaves its model behind for :func:`publish`."""
+    Per env and algorithm, the row's budget is its archived trials' (or the published
+    row's, ``published`` being the previous aggregate; else the root's largest). Trials
+    of that budget join the row. Trials of a larger budget are staged,
+    ``train.sweep.staged_root(store, steps)``, with their models, until that budget's
+    staged trials cover every seed of the row (archived or published); then they replace
+    the row, their models left staged for :func:`publish`, and the staged trials of
+    smaller budgets are dropped. So a raised budget can be trained a few seeds a run and
+    never mixes with the row before it. Trials of a smaller budget are left out (no
+    result of the row; appended to ``left_out`` as (directory, steps, row's steps))."""
     written = []
     for path in sorted((root / "baselines").glob("*.json")):
         target = store / "baselines" / path.name
         target.parent.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(path, target)
         written.append(target)
-    staged = staged_root(store)
+    rows = _row_seeds(published)
     for group in sorted({done.parent.parent for done in (root / "runs").glob(
             "*/*/seed*/evaluation.json")}):
         env, algo = group.parent.name, group.name
         trials, archived = _budgets(root, env, algo), _budgets(store, env, algo)
-        waiting = _budgets(staged, env, algo)
-        for steps in sorted(set(trials.values())):
-            covered = {seed for budgets in (trials, waiting, archived)
-                       for seed, held in budgets.items() if held == steps}
-            ours = [seed for seed, held in trials.items() if held == steps]
-            if not set(archived) <= covered:
-                for seed in ours:
-                    written += _copy_trial(group / f"seed{seed}", staged / "runs" / env / algo
-                                           / f"seed{seed}", (*ARCHIVED, MODEL))
-                continue
-            for seed in sorted(seed for seed, held in waiting.items() if held == steps):
-                source = staged / "runs" / env / algo / f"seed{seed}"
-                if seed not in ours:  # (else the root's trial of that seed replaces it)
-                    written += _copy_trial(source, store / "runs" / env / algo
-                                           / f"seed{seed}", ARCHIVED)
-                (source / "evaluation.json").unlink()  # joined: only its model counts
-            for seed in ours:
-                written += _copy_trial(group / f"seed{seed}",
-                                       store / "runs" / env / algo / f"seed{seed}", ARCHIVED)
+        seeds, budgets = rows.get((env, algo), (set(), set()))
+        row_steps = max({*archived.values(), *budgets} or set(trials.values()))
+        for seed, steps in sorted(trials.items()):
+            source = group / f"seed{seed}"
+            if steps == row_steps:
+                written += _copy_trial(source, run_dir(store, env, algo, seed), ARCHIVED)
+            elif steps > row_steps:
+                written += _copy_trial(source, run_dir(staged_root(store, steps), env, algo,
+                                                       seed), (*ARCHIVED, MODEL))
+            elif left_out is not None:
+                left_out.append((source, steps, row_steps))
+        written += _join_staged(store, env, algo, row_steps, seeds | set(archived))
     return written
+
+
+def _join_staged(store: Path, env: str, algo: str, row_steps: int,
+                 seeds: set[int]) -> list[Path]:
+    """The largest staged budget above ``row_steps`` whose trials cover ``seeds`` replaces
+    the row of ``env``/``algo`` (:func:`archive`); returns the files written."""
+    staged = {int(path.name): path for path in staged_root(store).glob("*")
+              if path.name.isdigit()}
+    for steps in sorted((held for held in staged if held > row_steps), reverse=True):
+        waiting = _budgets(staged[steps], env, algo)
+        if not seeds <= set(waiting):
+            continue
+        written = []
+        for seed in sorted(waiting):
+            source = run_dir(staged[steps], env, algo, seed)
+            written += _copy_trial(source, run_dir(store, env, algo, seed), ARCHIVED)
+            (source / "evaluation.json").unlink()  # joined: only its model counts
+        for lower in (held for held in staged if held < steps):  # no result of the row now
+            shutil.rmtree(staged[lower] / "runs" / env / algo, ignore_errors=True)
+        return written
+    return []
 
 
 def prune_staged(store: Path = ARCHIVE) -> list[Path]:
     """Remove the staged directories of trials that joined their rows (their models were
-    left for :func:`publish`); returns the directories removed."""
+    left for :func:`publish`), and staged budgets left empty; returns what was removed."""
     removed = []
-    for directory in sorted(staged_root(store).glob("runs/*/*/seed*")):
+    for directory in sorted(staged_root(store).glob("*/runs/*/*/seed*")):
         if not (directory / "evaluation.json").exists():
             shutil.rmtree(directory)
             removed.append(directory)
+    for budget in sorted(staged_root(store).glob("*")):
+        if budget.is_dir() and not any(p.is_file() for p in budget.rglob("*")):
+            shutil.rmtree(budget)
+            removed.append(budget)
     return removed
 
 
@@ -300,7 +340,7 @@ def _model(root: Path, store: Path, env_id: str, algo: str, seed: int,
     archive by a trial that joined its row; None where neither holds it (a model of
     another budget, by its ``config.yml``, is another trial's)."""
     for directory in (run_dir(root, env_id, algo, seed),
-                      run_dir(staged_root(store), env_id, algo, seed)):
+                      run_dir(staged_root(store, steps), env_id, algo, seed)):
         model, config = directory / MODEL, directory / "config.yml"
         if model.exists() and config.exists() and int(
                 yaml.safe_load(config.read_text())["hyperparams"]["n_timesteps"]) == steps:
@@ -310,12 +350,13 @@ def _model(root: Path, store: Path, env_id: str, algo: str, seed: int,
 
 def publish(root: Path, records: dict[str, dict[str, Any]], *, out: Path = SWEEP_RESULTS,
             models: Path = MODELS, store: Path = ARCHIVE) -> list[Path]:
-    """Copy the representative models (from the sweep root ``root``) and records (from
-    the archive ``store``), write the aggregate and the plots; returns the files written.
-    A representative already published (the same seed playing the same returns, e.g. a
-    re-run of it) keeps its committed model and record. ``FileNotFoundError``, before
-    anything is written, when a representative seed's model is not under ``root`` (it was
-    trained on another machine: train that seed again there, or here, to publish it)."""
+    """Copy the representative models (from the sweep root ``root``, or where the
+    archive ``store`` staged them) and records (from the archive), write the aggregate and
+    the plots; returns the files written. A representative already published (the same
+    seed playing the same returns, e.g. a re-run of it) keeps its committed model and
+    record. ``FileNotFoundError``, before anything is written, when a representative
+    seed's model is in neither place (it was trained on another machine and archived
+    without staging: train that seed again there, or here, to publish it)."""
     # Every model is found before anything is written: a missing one leaves no half-publish.
     copies = []
     for env_id, record in records.items():

@@ -20,11 +20,11 @@ same command again resumes a sweep (a record of another budget is no result of t
 it is trained again, into a root of its own). Across machines and runs:
 ``python -m train.aggregate --publish`` archives every finished trial's records (not its
 checkpoints) in the repository, ``docs/results/sweep/trials`` (``ARCHIVE``, laid out as a
-root), and a trial archived there is skipped too. A trial of another budget than the
-archived row's seeds (the budget was raised) waits in ``<archive>/staged`` (``STAGED``,
-laid out as a root, its model kept) until trials of its budget cover every seed of the
-row, which they then replace; a sweep skips a staged trial as well, so a long sweep can
-be spread over runs, a few seeds at a time, publishing after each.
+root), and a trial archived there is skipped too. A trial of a larger budget than its
+row's (the budget was raised) waits in ``<archive>/staged/<steps>`` (``STAGED``, laid out
+as a root, its model kept) until trials of its budget cover every seed of the row, which
+they then replace; a sweep skips a staged trial as well, so a long sweep can be spread
+over runs, a few seeds at a time, publishing after each.
 """
 
 from __future__ import annotations
@@ -65,9 +65,10 @@ def baselines_path(root: Path, env_id: str) -> Path:
     return Path(root) / "baselines" / f"{env_name(env_id)}.json"
 
 
-def staged_root(store: Path) -> Path:
-    """Where an archive keeps the trials of a budget its rows do not have yet."""
-    return Path(store) / STAGED
+def staged_root(store: Path, steps: int | None = None) -> Path:
+    """Where an archive keeps the trials of budgets larger than their rows' (``steps``:
+    of that budget, a root of its own)."""
+    return Path(store) / STAGED if steps is None else Path(store) / STAGED / str(int(steps))
 
 
 def done_path(spec: dict[str, Any], root: Path | None = None) -> Path:
@@ -104,7 +105,8 @@ def finished(spec: dict[str, Any]) -> Path | None:
     another number of steps (the budget changed since) is no result of this trial."""
     steps = None if spec["algo"] == BASELINES_TRIAL else budget(spec)
     store = Path(spec.get("archive", ARCHIVE))
-    for root in (spec["root"], store, staged_root(store)):
+    roots = [spec["root"], store] + ([] if steps is None else [staged_root(store, steps)])
+    for root in roots:
         path = done_path(spec, root)
         if path.exists() and (steps is None
                               or json.loads(path.read_text())["timesteps"] == steps):

@@ -151,22 +151,28 @@ def _synthetic_trial(root, env: str, seed: int, scores: np.ndarray, oracle: np.n
     return directory
 
 
+def _trials(root, env: str, trials: dict[int, tuple[float, int]]) -> Path:
+    """``ppo`` trials under ``root``: seed -> (score on every task, steps), each with a
+    model naming them; returns ``root``."""
+    for seed, (score, steps) in trials.items():
+        directory = _synthetic_trial(root, env, seed, np.full(20, score), np.zeros(20), steps)
+        (directory / "model.zip").write_bytes(f"seed {seed} at {steps}".encode())
+    return root
+
+
 def test_a_raised_budget_waits_staged_until_its_seeds_cover_the_row(tmp_path):
     # A sweep of a raised budget spread over runs, two seeds a run: its trials neither
     # replace nor mix with the row of the budget before until they cover all its seeds;
     # then they replace it, and a representative trained in a run whose root is gone is
     # published from the model its staged trial left.
-    store, oracle = tmp_path / "archive", np.zeros(20)
+    store = tmp_path / "archive"
     env = _synthetic_root(tmp_path / "first", np.full((3, 20), 0.5), rival=np.full(20, 0.2))
     publish.archive(tmp_path / "first", store)
     before = json.dumps(aggregate.aggregate(store))
-    second, third = tmp_path / "second", tmp_path / "third"
-    for seed, score in ((0, 0.8), (1, 0.9)):
-        trial = _synthetic_trial(second, env, seed, np.full(20, score), oracle, steps=2000)
-        (trial / "model.zip").write_bytes(f"seed {seed} at 2000".encode())
+    second = _trials(tmp_path / "second", env, {0: (0.8, 2000), 1: (0.9, 2000)})
     publish.archive(second, store)
     assert json.dumps(aggregate.aggregate(store)) == before
-    staged = sweep.staged_root(store)
+    staged = sweep.staged_root(store, 2000)
     spec = sweep.trials([env], ["ppo"], [0], tmp_path / "elsewhere", 20, 2000, {}, store)[1]
     assert sweep.finished(spec) == sweep.done_path(spec, staged)
     assert sweep.finished({**spec, "seed": 2}) is None
@@ -176,11 +182,9 @@ def test_a_raised_budget_waits_staged_until_its_seeds_cover_the_row(tmp_path):
     with pytest.raises(FileNotFoundError, match="representative seed 0"):
         publish.publish(second, json.loads(before), out=tmp_path / "out",
                         models=tmp_path / "models", store=store)
-    _synthetic_trial(third, env, 2, np.full(20, 0.7), oracle, steps=2000)
     # Seed 1 trained again at the raised budget: its new record joins the row, not the
     # staged one.
-    again = _synthetic_trial(third, env, 1, np.full(20, 0.85), oracle, steps=2000)
-    (again / "model.zip").write_bytes(b"seed 1 again")
+    third = _trials(tmp_path / "third", env, {1: (0.85, 2000), 2: (0.7, 2000)})
     publish.archive(third, store)
     records = aggregate.aggregate(store)
     row = records[env]["policies"]["ppo"]
@@ -188,16 +192,61 @@ def test_a_raised_budget_waits_staged_until_its_seeds_cover_the_row(tmp_path):
     assert row["representative_seed"] == 0  # IQM 0.79 of 0.7, 0.8, 0.85
     assert sweep.finished(spec) == sweep.done_path(spec, store)
     assert not list(staged.glob("runs/*/*/seed*/evaluation.json"))
-    assert json.loads(sweep.done_path({**spec, "seed": 1}, store).read_text())[
-        "policy"]["returns"] == json.loads((again / "evaluation.json").read_text())[
-        "policy"]["returns"]
+    assert json.loads(sweep.done_path({**spec, "seed": 1}, store).read_text()) == json.loads(
+        sweep.done_path({**spec, "seed": 1}, third).read_text())
     publish.publish(third, records, out=tmp_path / "out", models=tmp_path / "models",
                     store=store)
     assert (tmp_path / "models" / "ToolTransfer-v1" / "ppo.zip").read_bytes() == (
         b"seed 0 at 2000")
     removed = publish.prune_staged(store)
-    assert [p.name for p in removed] == ["seed0", "seed1"]
-    assert not list(staged.glob("runs/*/*/seed*/*"))
+    assert [p.name for p in removed] == ["seed0", "seed1", "seed2", "2000"]
+    assert not sweep.staged_root(store).exists() or not any(
+        sweep.staged_root(store).iterdir())
+
+
+def test_a_row_takes_one_budget_and_never_goes_back(tmp_path):
+    store, left_out = tmp_path / "archive", []
+    env = _synthetic_root(tmp_path / "first", np.full((3, 20), 0.5), rival=np.full(20, 0.2))
+    publish.archive(tmp_path / "first", store)
+    # One root with seeds of the row's budget and of a raised one: the first join the
+    # row, the others wait; the row never holds two budgets.
+    mixed = _trials(tmp_path / "mixed", env, {0: (0.8, 2000), 3: (0.6, 1000)})
+    publish.archive(mixed, store, left_out=left_out)
+    row = aggregate.aggregate(store)[env]["policies"]["ppo"]
+    assert row["seeds"] == [0, 1, 2, 3] and row["timesteps"] == [1000] and not left_out
+    waiting = sweep.run_dir(sweep.staged_root(store, 2000), env, "ppo", 0)
+    assert (waiting / "model.zip").read_bytes() == b"seed 0 at 2000"
+    # A smaller budget than the row's is left out, named; it touches no staged trial of
+    # the same seed, nor does a larger budget of that seed, which waits apart.
+    _trials(tmp_path / "short", env, {0: (0.1, 50)})
+    _trials(tmp_path / "long", env, {0: (0.9, 3000)})
+    publish.archive(tmp_path / "short", store, left_out=left_out)
+    publish.archive(tmp_path / "long", store, left_out=left_out)
+    assert [(path.name, steps, row_steps) for path, steps, row_steps in left_out] == [
+        ("seed0", 50, 1000)]
+    assert (waiting / "model.zip").read_bytes() == b"seed 0 at 2000"
+    assert sweep.run_dir(sweep.staged_root(store, 3000), env, "ppo", 0).exists()
+    assert aggregate.aggregate(store)[env]["policies"]["ppo"]["timesteps"] == [1000]
+    # A published row holds seeds the archive lost: the raised budget must cover those
+    # too before it replaces the row (else the row would shrink, and be carried over).
+    published = aggregate.aggregate(store)
+    published[env]["policies"]["ppo"]["seeds"] = [0, 1, 2, 3, 4]
+    publish.archive(_trials(tmp_path / "rest", env, {1: (0.8, 2000), 2: (0.8, 2000),
+                                                     3: (0.8, 2000)}), store, published)
+    assert aggregate.aggregate(store)[env]["policies"]["ppo"]["timesteps"] == [1000]
+    publish.archive(_trials(tmp_path / "last", env, {4: (0.8, 2000)}), store, published)
+    row = aggregate.aggregate(store)[env]["policies"]["ppo"]
+    assert row["seeds"] == [0, 1, 2, 3, 4] and row["timesteps"] == [2000]
+    # The larger budget still waits; an old root of the budget before is left out.
+    assert sweep.run_dir(sweep.staged_root(store, 3000), env, "ppo", 0).exists()
+    publish.archive(tmp_path / "first", store, left_out=left_out)
+    assert aggregate.aggregate(store)[env]["policies"]["ppo"]["timesteps"] == [2000]
+    assert len(left_out) == 4
+    # A new row with nothing archived takes its root's largest budget.
+    fresh = tmp_path / "fresh_archive"
+    publish.archive(mixed, fresh, left_out=left_out)
+    assert aggregate.load(fresh)[env]["trials"]["ppo"][0]["timesteps"] == 2000
+    assert left_out[-1][1:] == (1000, 2000)
 
 
 def test_a_cloned_rows_oracle_episodes_are_published_beside_its_steps(tmp_path):
@@ -222,6 +271,12 @@ def test_a_resumed_run_publishes_the_command_that_started_it(tmp_path):
     record.write_text(f"{started}\n{started} --resume\n")
     assert publish._portable(publish._started_by(record), tmp_path) == (
         "python -m train --algo ppo --run-dir runs/sweep/runs/x/seed2")
+    # A trial staged from another machine's root: its run directory from runs/<EnvName>.
+    elsewhere = ("/venv/bin/python -m train --algo ppo --env IKBranch/UR5e-v3 --seed 2 "
+                 "--run-dir /work/sweep/runs/ur5e/runs/UR5e-v3/ppo/seed2")
+    assert publish._portable(elsewhere, tmp_path) == (
+        "python -m train --algo ppo --env IKBranch/UR5e-v3 --seed 2 "
+        "--run-dir runs/sweep/runs/UR5e-v3/ppo/seed2")
 
 
 def test_aggregation_recovers_known_iqm_intervals_and_improvement(tmp_path):
