@@ -39,11 +39,17 @@ from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
-import yaml
 
 from ikbranch_gym.agents import PaperRule, RecedingDP
 from ikbranch_gym.envs.kinematics import INDUSTRIAL_ARM_NAMES
-from ikbranch_gym.train.sweep import ARCHIVE, env_name, run_dir, staged_root
+from ikbranch_gym.train.sweep import (
+    ARCHIVE,
+    MODEL,
+    env_name,
+    run_dir,
+    staged_root,
+    trained_model_steps,
+)
 
 ROOT = Path(__file__).resolve().parent.parent
 #: The single-seed records of the earlier ids (``python -m train.results``) and their plots.
@@ -151,9 +157,6 @@ def plot_curves(env_id: str, record: dict[str, Any], path: Path) -> bool:
 #: only while the trial is staged: a row's representative model goes to ``models/``).
 #: The record that marks the trial finished comes last.
 ARCHIVED = ("evaluations.npz", "config.yml", "command.txt", "versions.yml", "evaluation.json")
-#: A run directory's trained model: a staged trial keeps it (it may become its row's
-#: representative once its budget's trials join the row).
-MODEL = "model.zip"
 
 
 def _budgets(root: Path, env: str, algo: str) -> dict[int, int]:
@@ -341,10 +344,8 @@ def _model(root: Path, store: Path, env_id: str, algo: str, seed: int,
     another budget, by its ``config.yml``, is another trial's)."""
     for directory in (run_dir(root, env_id, algo, seed),
                       run_dir(staged_root(store, steps), env_id, algo, seed)):
-        model, config = directory / MODEL, directory / "config.yml"
-        if model.exists() and config.exists() and int(
-                yaml.safe_load(config.read_text())["hyperparams"]["n_timesteps"]) == steps:
-            return model
+        if trained_model_steps(directory) == steps:
+            return directory / MODEL
     return None
 
 

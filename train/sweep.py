@@ -48,6 +48,8 @@ ARCHIVE = ROOT / "docs" / "results" / "sweep" / "trials"
 #: Held-out tasks per evaluation (at least 200 per row).
 EPISODES = 200
 BASELINES_TRIAL = "baselines"
+#: A run directory's trained model (``python -m train`` writes it last).
+MODEL = "model.zip"
 #: The archive's root of trials waiting for the rest of their budget's seeds
 #: (``train.publish.archive``).
 STAGED = "staged"
@@ -147,18 +149,18 @@ def run_trial(spec: dict[str, Any]) -> dict[str, Any]:
     seed = int(spec["seed"])
     directory = run_dir(root, env_id, algo, seed)
     steps = budget(spec)
-    trained_for = _trained_for(directory)
+    trained_for = trained_model_steps(directory)
     if trained_for is not None and trained_for != steps:
         raise ValueError(f"{directory} holds a model trained for {trained_for} steps, where "
                          f"this trial's budget is {steps}: give the sweep another --root")
     start = time.perf_counter()
-    if not (directory / "model.zip").exists():
+    if not (directory / MODEL).exists():
         resume = (directory / "checkpoints" / LATEST).exists()
         train(_run(spec, resume=resume, progress_bar=False),
               argv=["--algo", algo, "--env", env_id, "--seed", str(seed), "--run-dir",
                     str(directory)])
     trained = time.perf_counter()
-    model = str(directory / "model.zip")
+    model = str(directory / MODEL)
     cloned = directory / IMITATION_RECORD
     result = evaluate(env_id, [model], episodes, TEST_SEED, env_kwargs=env_kwargs)
     record = {
@@ -175,10 +177,10 @@ def run_trial(spec: dict[str, Any]) -> dict[str, Any]:
     return record
 
 
-def _trained_for(directory: Path) -> int | None:
+def trained_model_steps(directory: Path) -> int | None:
     """The steps the model in a run directory was trained for (its ``config.yml``), or
     None where it holds no model."""
-    if not (directory / "model.zip").exists():
+    if not (directory / MODEL).exists():
         return None
     config = yaml.safe_load((directory / "config.yml").read_text())
     return int(config["hyperparams"]["n_timesteps"])

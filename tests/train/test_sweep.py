@@ -561,7 +561,7 @@ def test_the_trial_archive_is_committed_not_ignored():
     for probe in (sweep.run_dir(sweep.ARCHIVE, "IKBranch/ToolTransfer-v1", "ppo", 0)
                   / "evaluation.json",
                   sweep.run_dir(sweep.staged_root(sweep.ARCHIVE), "IKBranch/ToolTransfer-v1",
-                                "ppo", 0) / publish.MODEL):
+                                "ppo", 0) / sweep.MODEL):
         result = subprocess.run(["git", "check-ignore", "--no-index", "-q", str(probe)],
                                 cwd=sweep.ROOT, check=False)
         assert result.returncode == 1, f"{probe} is ignored by .gitignore"
