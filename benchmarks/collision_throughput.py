@@ -30,7 +30,9 @@ id of ``--ids`` (its scene after ``reset(seed=0)``, which lays a clutter; the ch
 margined model, which the filter reads): ``--configs`` uniform configurations through
 ``CompiledFilter.collide`` (asserted equal to MuJoCo's ncon > 0 on every one), and
 ``--env-paths`` verdict-only clutter paths through ``rows_paths_collide`` (per bounded
-sample), against ``mj_kinematics`` + ``mj_collision`` per configuration on a fresh
+sample with the scalar kernel alone, and per path with and without the lanes, which bound
+16 samples a call: ``envs/models/filter/lanes.py``; the verdicts asserted equal), against
+``mj_kinematics`` + ``mj_collision`` per configuration on a fresh
 ``MjData``, called from a Python loop (``data.qpos[:dof] = q``, reading ``ncon``) and from
 a tight loop (qpos through a preallocated view, nothing read), and from a numba loop that
 calls the two C functions as the filter's own MuJoCo fallback does (no Python per
@@ -41,6 +43,7 @@ the tight loop. Best of ``--repeats`` runs; numbers depend on the machine and it
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import time
 
@@ -59,7 +62,8 @@ from ikbranch_gym.envs.models import (
     native,
 )
 from ikbranch_gym.envs.models.filter import COUNTERS
-from ikbranch_gym.envs.models.filter.kernels import _exact_contacts
+from ikbranch_gym.envs.models.filter.kernels import LANE_FUNCTION, _exact_contacts
+from ikbranch_gym.envs.models.filter.lanes import LANES
 
 #: The env ids of the last table (``--ids``): their scenes after ``reset(seed=0)``.
 ENV_IDS = ("IKBranch/Anthropomorphic-v2", "IKBranch/KukaKR6-v0", "IKBranch/UR5e-v0",
@@ -262,10 +266,14 @@ def _beside_mujoco(ids, configs: int, count: int, repeats: int) -> None:
           f"({configs} configurations, ~{count} clutter paths per id; MuJoCo = "
           "mj_kinematics + mj_collision on a fresh MjData)\n")
     print("| id | slots | pairs | ns/configuration (filter) | in contact % | witnessed % "
-          "| MuJoCo calls % | ns/bounded path sample (filter) | bounded samples/path "
-          "| paths hit % | ns/configuration MuJoCo (kinematics+collision, numba loop) "
+          "| MuJoCo calls % | ns/bounded path sample (scalar kernel alone) "
+          "| bounded samples/path | paths hit % | µs/path, scalar kernel alone "
+          "| µs/path, with lanes | lane samples/path | scalar samples/path, with lanes "
+          "| ns/lane, a full lane call from Python "
+          "| ns/configuration MuJoCo (kinematics+collision, numba loop) "
           "| ns MuJoCo, Python loop | ns MuJoCo, tight Python loop | ns its qpos writes alone |")
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:"
+          "|---:|---:|")
     for env_id in ids:
         env = gym.make(env_id)
         env.reset(seed=0)
@@ -288,19 +296,48 @@ def _beside_mujoco(ids, configs: int, count: int, repeats: int) -> None:
         q0 = np.ascontiguousarray(starts[~checker.rows_collide(starts)][:count])
         q1 = np.ascontiguousarray(np.clip(
             q0 + rng.uniform(-0.25, 0.25, size=q0.shape) * (upper - lower), lower, upper))
-        before = filt.counters.copy()
-        hits = checker.rows_paths_collide(q0, q1)
-        bounded = int((filt.counters - before)[COUNTERS.index("bounded")])
         run = lambda c=checker, q0=q0, q1=q1: c.rows_paths_collide(q0, q1)  # noqa: E731
-        per_sample = _best(run, repeats) / bounded
+        lanes = int(filt._exact[0, LANE_FUNCTION])
+        filt._exact[0, LANE_FUNCTION] = 0  # the scalar kernel alone first
+        before = filt.counters.copy()
+        hits = run()
+        bounded = int((filt.counters - before)[COUNTERS.index("bounded")])
+        per_path = _best(run, repeats) / len(q0)
+        filt._exact[0, LANE_FUNCTION] = lanes
+        before = filt.counters.copy()
+        assert np.array_equal(run(), hits), f"{env_id}: lanes changed a verdict"
+        with_lanes = dict(zip(COUNTERS, filt.counters - before, strict=True))
+        per_path_lanes = _best(run, repeats) / len(q0) if lanes else math.nan
+        per_lane = _lane_call(filt, q0, q1, repeats) if lanes else math.nan
         env.close()
 
         slots, pairs = len(filt.scene.slot_geom), len(filt.scene.pair_a)
         print(f"| {env_id} | {slots} | {pairs} | {per_config * 1e9:,.0f} "
               f"| {verdicts.mean():.1%} | {spent['witnessed'] / configs:.2%} "
-              f"| {spent['mujoco'] / configs:.2%} | {per_sample * 1e9:,.0f} "
-              f"| {bounded / len(q0):.1f} | {hits.mean():.0%} | {native_call * 1e9:,.0f} "
+              f"| {spent['mujoco'] / configs:.2%} | {per_path * 1e9 / bounded * len(q0):,.0f} "
+              f"| {bounded / len(q0):.1f} | {hits.mean():.0%} | {per_path * 1e6:.1f} "
+              f"| {per_path_lanes * 1e6:.1f} | {with_lanes['lane samples'] / len(q0):.1f} "
+              f"| {with_lanes['bounded'] / len(q0):.1f} | {per_lane * 1e9:,.0f} "
+              f"| {native_call * 1e9:,.0f} "
               f"| {plain * 1e9:,.0f} | {tight * 1e9:,.0f} | {writes * 1e9:,.0f} |")
+
+
+def _lane_call(filt, q0: np.ndarray, q1: np.ndarray, repeats: int) -> float:
+    """Seconds per lane of one full lane call from Python (``LaneScene.bound``: 16 samples
+    in the middle of 16 of these paths, ctypes' overhead included), best of ``repeats``
+    runs of 200 calls."""
+    scene, lanes = filt.scene, filt.lanes
+    dof, nq = q0.shape[1], len(scene.qpos0)
+    start, change = np.tile(scene.qpos0, (LANES, 1)), np.zeros((LANES, nq))
+    start[:, :dof], change[:, :dof] = q0[:LANES], q1[:LANES] - q0[:LANES]
+    rates = np.abs(change[:, :dof]) @ scene.pair_lever[0][:dof]
+    t, cap = np.full(LANES, 0.5), np.full(LANES, 1.0 / 64)
+
+    def calls() -> None:
+        for _ in range(200):
+            lanes.bound(start, change, t, cap, rates)
+
+    return _best(calls, repeats) / (200 * LANES)
 
 
 if __name__ == "__main__":

@@ -168,14 +168,16 @@ def test_the_wheel_installs_into_a_fresh_venv_with_core_extras_then_trains(tmp_p
             if terminated or truncated:
                 obs, info = env.reset()
         import ikbranch_gym
-        print(envs.OWNER, ikbranch_gym.__version__, ikbranch_gym.__file__.startswith(sys.prefix))
+        from ikbranch_gym.envs.models.filter.lanes import library  # its C source ships
+        print(envs.OWNER, ikbranch_gym.__version__, ikbranch_gym.__file__.startswith(sys.prefix),
+              library() is not None)
         print(sorted(m for m in ("torch", "stable_baselines3", "ray", "yaml", "coacd",
                                  "matplotlib", "rliable", "pandas") if m in sys.modules))
     """, cwd=user, python=python)
     assert result.returncode == 0, result.stderr
     first, second = result.stdout.strip().splitlines()[-2:]
     version = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["version"]
-    assert first.split() == ["user", "envs", version, "True"]
+    assert first.split() == ["user", "envs", version, "True", "True"]
     assert second == "[]"
     for name in ("torch", "stable_baselines3", "ray", "coacd"):
         probe = _python(f"import {name}", cwd=user, python=python)

@@ -16,6 +16,9 @@ most samples without MuJoCo. Its rooms:
   separating axes, which never overestimates), of two inner shapes exactly.
 - :mod:`.tree` — **forward kinematics of the tree** in the kernel, slot frames, path
   samples and how fast they move.
+- :mod:`.lanes` — **16 path samples at once**: a small C kernel (``lanes.c``) that proves
+  samples free from cover spheres of the moving geoms, for the path checks of many paths
+  (the samples it does not prove go on to the checks below).
 - :mod:`.kernels` — **the checks**. At a sample, first every pair's bounding spheres, then
   the containers of the pairs that could matter: a sample at which every pair is provably
   farther than its contact margin (δ, plus ``DISTANCE_TOLERANCE``) is free, exactly as
@@ -48,7 +51,17 @@ import mujoco
 import numpy as np
 
 from .. import native
-from .kernels import COUNTERS, bound_configurations, bound_paths, make_bound, path_steps
+from .kernels import (
+    COUNTERS,
+    LANE_FUNCTION,
+    LANE_SCENE,
+    LANE_WORK,
+    bound_configurations,
+    bound_paths,
+    make_bound,
+    path_steps,
+)
+from .lanes import LaneScene
 from .layout import (
     DISTANCE_TOLERANCE,
     PER_SCENE,
@@ -74,11 +87,18 @@ class CompiledFilter:
         self._model, self._data = model, data
         #: Totals since construction, named by ``COUNTERS`` (benchmarks and tests read them).
         self.counters = np.zeros(len(COUNTERS), dtype=np.int64)
-        self._bind(compile_scene(model, dof, pairs), native.exact_addresses(model, data)[None])
+        exact = np.zeros((1, LANE_WORK + 1), dtype=np.uint64)
+        exact[0, :LANE_FUNCTION] = native.exact_addresses(model, data)
+        self._bind(compile_scene(model, dof, pairs), exact)
 
     def _bind(self, scene: CompiledScene, exact: np.ndarray) -> None:
-        """Read ``scene`` (one scene) and ``exact`` (its (1, 6) MuJoCo addresses) from now on."""
+        """Read ``scene`` (one scene) and ``exact`` (its (1, 9) row: MuJoCo's addresses,
+        then the lanes', ``kernels.LANE_FUNCTION``) from now on."""
         self.scene, self._exact = scene, exact
+        self.lanes = LaneScene(scene)
+        exact[0, LANE_FUNCTION] = self.lanes.function if self.lanes.address else 0
+        exact[0, LANE_SCENE] = self.lanes.address
+        exact[0, LANE_WORK] = self.lanes.work_doubles
         # The kernels' leading arguments, built once (the arrays are refreshed in place).
         self._bound = make_bound(scene.tree, scene.geometry, scene.motion, exact, self.counters)
 

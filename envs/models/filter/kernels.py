@@ -20,6 +20,7 @@ from numba.experimental import structref
 from ikbranch_gym.envs.jit import njit
 
 from .. import native
+from .lanes import LANES
 from .layout import BOX, CAPSULE, CYLINDER, SPHERE
 from .shapes import _axis_in_cylinder, _bound_pair, _box_box, _inner_distance, _skewers
 from .tree import _forward, _local_speed, _path_rates, _path_sample, _place_slots, _slot_growth
@@ -30,8 +31,17 @@ UNDECIDED, CONTACT = -1.0, -2.0
 BY_BOUNDS, BY_WITNESS, BY_MUJOCO = 0, 1, 2
 #: The filter's counters, in order: samples bounded, MuJoCo checks, exact pair bounds
 #: computed, MuJoCo checks that found no contact (samples free that the bounds could not
-#: prove free), samples a witness (:func:`_witnessed`) proved in contact.
-COUNTERS = ("bounded", "mujoco", "pair bounds", "mujoco found free", "witnessed")
+#: prove free), samples a witness (:func:`_witnessed`) proved in contact, path samples the
+#: lanes bounded (:mod:`.lanes`; those they did not prove free are bounded again, and
+#: counted, as "bounded"), calls of the lane kernel.
+COUNTERS = ("bounded", "mujoco", "pair bounds", "mujoco found free", "witnessed",
+            "lane samples", "lane calls")
+#: The fewest paths, and samples a round, worth the lanes (a lane call costs about as much
+#: for one sample as for four): with fewer the scalar kernel bounds them one by one.
+LANE_MIN = 2
+#: Where a scene's lanes are in its row of ``exact`` (``CompiledFilter``): the kernel's
+#: address (0: no lanes), its ``Scene`` struct, the doubles of a call's work array.
+LANE_FUNCTION, LANE_SCENE, LANE_WORK = 6, 7, 8
 
 
 @njit(inline="always")
@@ -414,6 +424,10 @@ def check_paths(tree, geometry, motion, exact, scenes, start_rows, end_rows, ste
     indices, breadth first; a sample the bounds prove free clears every index within its
     free step on both sides, a sample a witness proves in contact is in contact,
     any other is checked by MuJoCo."""
+    if len(steps) >= LANE_MIN and exact[scenes[0], LANE_FUNCTION] != 0:
+        _lane_paths(tree, geometry, motion, exact, scenes, start_rows, end_rows, steps, first,
+                    out, counters)
+        return
     xpos, xmat, wpos, wrot, rates, coarse = _work(tree, geometry)
     kinematic = tree[:12]
     qpos0 = tree[11]
@@ -480,6 +494,212 @@ def check_paths(tree, geometry, motion, exact, scenes, start_rows, end_rows, ste
             tail = _push_interval(queue_lo, queue_hi, tail, lo, mid - reach - 1)
             tail = _push_interval(queue_lo, queue_hi, tail, mid + reach + 1, hi)
         out[m] = found if found <= n else -1
+
+
+@njit
+def _lane_paths(tree, geometry, motion, exact, scenes, start_rows, end_rows, steps, first,
+                out, counters):
+    """:func:`check_paths` with the samples of up to ``LANES`` paths bounded ``LANES`` at a
+    time. Each path keeps the scalar loop's raked search (its queue of intervals, its lowest
+    contact ``found``), started from a few intervals at once when the call has few paths,
+    so that one path alone fills the lanes. Each round takes the next interval of every
+    path in turn until the lanes are full, bounds the intervals' middle samples in one call
+    of the lane kernel (:mod:`.lanes`), and goes on as the scalar loop does: a sample it
+    proves free clears its step on both sides; any other is bounded by the scalar kernel
+    (witnesses, MuJoCo). A finished path's place takes the next path of the same scene; a
+    new scene waits until every path has finished (one call reads one scene)."""
+    xpos, xmat, wpos, wrot, rates, coarse = _work(tree, geometry)
+    qpos0 = tree[11]
+    nq, npair, count = len(qpos0), len(geometry[7]), len(steps)
+    slots = len(motion[0])
+    scalar = (xpos, xmat, wpos, wrot, rates, coarse, np.zeros(nq), np.empty(nq), np.empty(nq),
+              (np.zeros(nq), np.zeros(slots), np.empty(slots)), np.full(1, -2, dtype=np.int64))
+    # Up to LANES paths in flight ("places"): path index (−1: none), grid, lowest contact
+    # found, queue of intervals, and the start, change and rates the lanes read.
+    size = _queue_size(steps)
+    places = (np.full(LANES, -1, dtype=np.int64), np.zeros(LANES, dtype=np.int64),
+              np.zeros(LANES, dtype=np.int64), np.empty((LANES, size), np.int64),
+              np.empty((LANES, size), np.int64), np.zeros(LANES, dtype=np.int64),
+              np.zeros(LANES, dtype=np.int64), np.empty((LANES, nq)), np.zeros((LANES, nq)),
+              np.zeros((LANES, npair)))
+    parts = max(1, LANES // min(count, LANES))  # a path's first intervals
+    # A round: per lane its place, interval and middle sample, the path it has loaded.
+    lanes = (np.full(LANES, -1, dtype=np.int64), np.full(LANES, -1, dtype=np.int64),
+             np.zeros(LANES, dtype=np.int64), np.zeros(LANES, dtype=np.int64),
+             np.zeros(LANES, dtype=np.int64))
+    # The lane kernel's Block (lanes.c): start, change, t, cap, rates, steps, work, width.
+    block_arrays = (np.empty((nq, LANES)), np.zeros((nq, LANES)), np.zeros(LANES),
+                    np.zeros(LANES), np.zeros((npair, LANES)), np.zeros(LANES),
+                    np.empty(int(exact[scenes[0], LANE_WORK])))
+    for j in range(nq):
+        block_arrays[0][j, :] = qpos0[j]
+    block = np.empty(8, dtype=np.uint64)
+    block[0], block[1] = block_arrays[0].ctypes.data, block_arrays[1].ctypes.data
+    block[2], block[3] = block_arrays[2].ctypes.data, block_arrays[3].ctypes.data
+    block[4], block[5] = block_arrays[4].ctypes.data, block_arrays[5].ctypes.data
+    block[6] = block_arrays[6].ctypes.data
+    # The per-lane work stays in this loop: as an inlined helper taking these arrays
+    # (numba reference-counts them per call) it measured 10–25 % slower on whole episodes.
+    kinematic, local, every_pair = tree[:12], scalar[9], scalar[10]
+    delta, qpos, start, dq = scalar[6], scalar[7], scalar[8], scalar[9][0]
+    _, grid, found, queue_lo, queue_hi, head, tail, starts, changes, place_rates = places
+    owner, lo, hi, mid, lane_step = lanes[0], lanes[2], lanes[3], lanes[4], block_arrays[5]
+    taken, current, entered = 0, -1, -1
+    while True:
+        taken, current = _take_paths(places, scenes, start_rows, end_rows, steps, qpos0,
+                                     geometry, scalar, taken, current, parts, out)
+        width = _gather(places, lanes)
+        if width == 0:
+            if taken == count and np.all(places[0] < 0):
+                return
+            current = -1  # every path of the scene is done: the next scene's
+            continue
+        e = current
+        if width >= LANE_MIN:
+            _bound_lanes(places, lanes, block_arrays, block, width, exact[e], counters)
+        else:
+            lane_step[:width] = -1.0
+        for lane in range(width):
+            p = owner[lane]
+            n, a, b, i = grid[p], lo[lane], hi[lane], mid[lane]
+            if i >= found[p] or (not first and found[p] <= n):
+                continue  # above a contact found this round, or the verdict is in
+            step = lane_step[lane]
+            if step < 0.0:  # not proven by the lanes: the scalar kernel's sample
+                if e != entered:
+                    _enter(_scene(geometry, e), wpos, wrot)
+                    entered = e
+                start[:], delta[:], rates[:npair] = starts[p], changes[p], place_rates[p]
+                np.abs(delta, dq)
+                _path_sample(qpos, start, delta, i / n, nq)  # (no change past the dof)
+                counters[0] += 1
+                step = _sample_step(kinematic, _scene(geometry, e), qpos, xpos, xmat, wpos,
+                                    wrot, rates, coarse, max(i - a, b - i) / n, counters,
+                                    motion, local, True, every_pair)
+                if step < 0.0 and _sample_collides(step, qpos, exact[e], counters):
+                    found[p] = i
+                    if not first:
+                        head[p] = tail[p]  # the verdict is in
+                    else:
+                        tail[p] = _push_interval(queue_lo[p], queue_hi[p], tail[p], a, i - 1)
+                    continue
+            scaled = max(step, 0.0) * n
+            reach = n if scaled >= n else int(scaled)
+            tail[p] = _push_interval(queue_lo[p], queue_hi[p], tail[p], a, i - reach - 1)
+            tail[p] = _push_interval(queue_lo[p], queue_hi[p], tail[p], i + reach + 1, b)
+
+
+@njit(inline="always")
+def _sample_collides(step, qpos, exact, counters):
+    """A sample the bounds did not prove free (``step`` < 0): in contact by a witness
+    (``CONTACT``), else as MuJoCo finds it (counted as :func:`check_paths` counts)."""
+    if step == CONTACT:
+        counters[4] += 1
+        return True
+    counters[1] += 1
+    if _exact_contacts(qpos, exact) > 0:
+        return True
+    counters[3] += 1
+    return False
+
+
+@njit(inline="always")
+def _take_paths(places, scenes, start_rows, end_rows, steps, qpos0, geometry, scalar, taken,
+                current, parts, out):
+    """Write out the paths whose queues are empty, and give their places to the next paths
+    of the scene in flight (``current``; −1: any). Returns (paths taken, scene)."""
+    path, grid, found, queue_lo, queue_hi, head, tail, starts, changes, place_rates = places
+    rates, delta, start, dq = scalar[4], scalar[6], scalar[8], scalar[9][0]
+    npair = place_rates.shape[1]
+    for p in range(LANES):
+        if path[p] >= 0 and head[p] == tail[p]:
+            out[path[p]] = found[p] if found[p] <= grid[p] else -1
+            path[p] = -1
+        if path[p] >= 0 or taken == len(steps):
+            continue
+        e = scenes[0] if len(scenes) == 1 else scenes[taken]
+        if current >= 0 and e != current:
+            continue
+        current, m = e, taken
+        taken += 1
+        n = steps[m]
+        path[p], grid[p], found[p] = m, n, n + 1
+        split = min(parts, n + 1)
+        head[p], tail[p] = 0, split
+        for i in range(split):
+            queue_lo[p, i] = (i * (n + 1)) // split
+            queue_hi[p, i] = ((i + 1) * (n + 1)) // split - 1
+        _fill_qpos(start, qpos0, start_rows[0] if start_rows.shape[0] == 1 else start_rows[m])
+        _path_rates(start, end_rows, m, geometry[10][e], delta, rates, dq)
+        for j in range(len(start)):
+            starts[p, j], changes[p, j] = start[j], delta[j]
+        for k in range(npair):
+            place_rates[p, k] = rates[k]
+    return taken, current
+
+
+@njit(inline="always")
+def _gather(places, lanes):
+    """A round's intervals: every path's next one in turn until the lanes are full (into
+    ``lanes``' place, low, high and middle rows). Returns how many."""
+    path, found, queue_lo, queue_hi, head, tail = (places[0], places[2], places[3], places[4],
+                                                   places[5], places[6])
+    owner, lo, hi, mid = lanes[0], lanes[2], lanes[3], lanes[4]
+    width, more = 0, True
+    while more and width < LANES:
+        more = False
+        for p in range(LANES):
+            if width == LANES:
+                break
+            if path[p] < 0 or not _next_interval(queue_lo[p], queue_hi[p], head, tail, p,
+                                                 found[p], lo, hi, width):
+                continue
+            owner[width], mid[width] = p, (lo[width] + hi[width]) // 2
+            width += 1
+            more = True
+    return width
+
+
+@njit(inline="always")
+def _bound_lanes(places, lanes, block_arrays, block, width, exact, counters):
+    """Load the round's samples into the lane kernel's Block (a lane's start, change and
+    rates only when its path changed) and call it on the first ``width`` lanes."""
+    path, grid, starts, changes, place_rates = (places[0], places[1], places[7], places[8],
+                                                places[9])
+    owner, loaded, lo, hi, mid = lanes
+    lane_start, lane_change, lane_t, lane_cap, lane_rates = block_arrays[:5]
+    for lane in range(width):
+        p = owner[lane]
+        if loaded[lane] != path[p]:
+            loaded[lane] = path[p]
+            for j in range(starts.shape[1]):
+                lane_start[j, lane], lane_change[j, lane] = starts[p, j], changes[p, j]
+            for k in range(place_rates.shape[1]):
+                lane_rates[k, lane] = place_rates[p, k]
+        n = grid[p]
+        lane_t[lane] = mid[lane] / n
+        lane_cap[lane] = max(mid[lane] - lo[lane], hi[lane] - mid[lane]) / n
+    block[7] = width
+    native.call_model_data(exact[LANE_FUNCTION], exact[LANE_SCENE],  # type: ignore[call-arg]
+                           block.ctypes.data)
+    counters[5] += width
+    counters[6] += 1
+
+
+@njit(inline="always")
+def _next_interval(queue_lo, queue_hi, head, tail, p, found, lo, hi, lane):
+    """Pop path ``p``'s next interval that still holds grid indices below ``found`` into
+    ``lo[lane]``, ``hi[lane]``; False when its queue is empty."""
+    size = len(queue_lo)
+    while head[p] != tail[p]:
+        a, b = queue_lo[head[p]], queue_hi[head[p]]
+        head[p] = (head[p] + 1) % size
+        if b >= found:
+            b = found - 1
+        if a <= b:
+            lo[lane], hi[lane] = a, b
+            return True
+    return False
 
 
 @njit(inline="always")

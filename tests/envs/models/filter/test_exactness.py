@@ -15,6 +15,7 @@ import pytest
 from ikbranch_gym.envs.kinematics import make_arm
 from ikbranch_gym.envs.models import CollisionChecker, arm_spec, build_model
 from ikbranch_gym.envs.models.builders import add_part, add_static_body, compile_spec
+from ikbranch_gym.envs.models.filter import COUNTERS
 from tests.envs.models.conftest import scene_cases
 
 #: Paths per arm × scene in the exactness tests (half short moves, half across the range).
@@ -26,12 +27,13 @@ def _checker(arm_name: str, scene: str, backend: str, **kwargs) -> CollisionChec
     return CollisionChecker(build_model(arm_name, scene, **kwargs), dof=arm.dof, backend=backend)
 
 
-def _paths(arm, rng, count):
-    """Half: from uniform configurations by up to a quarter of every joint range; half:
+def _paths(arm, rng, count, reach=0.25):
+    """Half: from uniform configurations by up to ``reach`` of every joint range; half:
     between two uniform configurations."""
     lower, upper = arm.joint_limits[:, 0], arm.joint_limits[:, 1]
     q0 = rng.uniform(lower, upper, size=(count, arm.dof))
-    near = np.clip(q0 + rng.uniform(-0.25, 0.25, size=q0.shape) * (upper - lower), lower, upper)
+    near = np.clip(q0 + rng.uniform(-reach, reach, size=q0.shape) * (upper - lower), lower,
+                   upper)
     far = rng.uniform(lower, upper, size=q0.shape)
     q1 = np.where(np.arange(count)[:, None] % 2 == 0, near, far)
     return q0, q1
@@ -156,8 +158,9 @@ def test_the_filter_decides_most_samples_itself():
     q0, q1 = _paths(arm, np.random.default_rng(24), 300)
     grid = int((checker.n_steps(q0, q1) + 1).sum())
     checker.paths_collide(q0, q1)
-    bounded, exact, _, _, _ = checker._filter.counters
-    assert exact < 0.01 * grid and bounded < 0.1 * grid
+    spent = dict(zip(COUNTERS, checker._filter.counters, strict=True))
+    assert spent["mujoco"] < 0.01 * grid
+    assert spent["bounded"] + spent["lane samples"] < 0.1 * grid
 
 
 
@@ -177,28 +180,29 @@ def test_mujoco_checks_that_find_no_contact_are_counted():
     q = rng.uniform(arm.joint_limits[:, 0], arm.joint_limits[:, 1], size=(3000, arm.dof))
     before = counters.copy()
     colliding = checker.collides(q)
-    _, checks, _, alarms, witnessed = counters - before
+    _, checks, _, alarms, witnessed, _, _ = counters - before
     assert colliding.any() and alarms > 0 and witnessed > 0
     assert checks - alarms + witnessed == colliding.sum()
     q0, q1 = _paths(arm, np.random.default_rng(26), 400)
     before = counters.copy()
     hits = checker.paths_collide(q0, q1)
-    _, checks, _, alarms, witnessed = counters - before
+    _, checks, _, alarms, witnessed, _, _ = counters - before
     assert hits.any() and alarms > 0 and witnessed > 0
     assert checks - alarms + witnessed == hits.sum()
 
 
-def test_a_stack_checks_every_scene_as_its_own_filter():
+@pytest.mark.parametrize("arm_name", ["anthropomorphic", "ur5e"])  # without lanes, with
+def test_a_stack_checks_every_scene_as_its_own_filter(arm_name):
     # Three clutters of one model in one stack: each row and path, tagged with its scene,
     # gets the verdict and first sample of that scene's own checker; a clutter laid in one
     # member afterwards is what the stack checks too.
     from ikbranch_gym.envs.models.filter import FilterStack, path_steps
     from ikbranch_gym.envs.models.scenes import CLUTTER_SLOTS, ClutterSlots, draw_clutter
 
-    arm = make_arm("anthropomorphic")
+    arm = make_arm(arm_name)
     checkers, slots = [], []
     for _ in range(3):
-        model = build_model("anthropomorphic", "random_clutter", seed=None)
+        model = build_model(arm_name, "random_clutter", seed=None)
         checker = CollisionChecker(model, dof=arm.dof)
         clutter = ClutterSlots(checker.model, CLUTTER_SLOTS)
         checkers.append(checker)
@@ -216,7 +220,8 @@ def test_a_stack_checks_every_scene_as_its_own_filter():
         lay(i, seed)
     stack = FilterStack([checker._filter for checker in checkers])
     rng = np.random.default_rng(33)
-    q0, q1 = _paths(arm, rng, 600)
+    # UR5e's joints turn ±2π: its moves across a quarter of that nearly all collide.
+    q0, q1 = _paths(arm, rng, 600, reach=0.25 if arm_name == "anthropomorphic" else 0.02)
     scenes = rng.integers(3, size=600)
     for relaid in (False, True):
         if relaid:

@@ -1,0 +1,279 @@
+/* Lanes: free steps of 16 path samples at once, for the collision filter's path checks.
+ *
+ * Each lane holds one sample of a linear joint path (its own path: start, change, path
+ * parameter t, per-pair rates) and gets a step s >= 0 such that every candidate pair of
+ * the scene stays farther than its contact margin for |t' - t| <= s along that path, from
+ * lower bounds only; or -1 where these bounds cannot prove the sample itself free (the
+ * caller then decides that sample exactly). s never exceeds the lane's cap.
+ *
+ * The bounds: each moving geom's container is held by spheres on its axis (a capsule's or
+ * cylinder's, a sphere itself: "covers", lanes.py); the distance of a cover sphere's
+ * centre to the partner's container (a point to a sphere, capsule, box, cylinder or
+ * half-space, in closed form) less its radius bounds the pair's distance from below, and
+ * so does the gap of the two bounding spheres. A pair closes at most at its rate (m per
+ * unit t, as the scalar kernels use it), so a gap g beyond the margin holds for g / rate.
+ * Every gap is reduced by SLACK (1e-9 m) for the rounding of these double-precision
+ * computations (forward kinematics and the polynomial sine and cosine stay within
+ * 1e-12 m of the scalar kernels', tests/envs/models/test_filter_lanes.py).
+ *
+ * Layout: structure of arrays, the 16 lanes innermost and contiguous, so that every
+ * inner loop is one run of SIMD instructions; no per-model code.
+ */
+#include <math.h>
+#include <stdint.h>
+
+#define L 16
+#define SLACK 1e-9
+enum { SPHERE, CAPSULE, BOX, CYLINDER, PLANE, UNBOUNDED };
+enum { FIXED_SPHERE, FIXED_HALF_SPACE, MOVING_PARTNER, OUT_OF_REACH };
+#define SLIDE 2
+/* Branch-free minimum and maximum (vminpd, vmaxpd: no NaN reaches them). */
+#define MIN(a, b) ((a) < (b) ? (a) : (b))
+#define MAX(a, b) ((a) > (b) ? (a) : (b))
+
+/* One scene of a compiled filter (layout.CompiledScene, its row of the per-scene
+ * arrays) and the covers of its moving geoms; built by lanes.py. */
+typedef struct {
+  int64_t nbody, nslot, npair;
+  const int64_t *body_parent; const double *body_pos, *body_rot;
+  const int64_t *body_jntadr, *body_jntnum, *body_flags, *jnt_type, *jnt_qposadr;
+  const double *jnt_pos, *jnt_axis, *qpos0, *body_xpos, *body_xmat;
+  const int64_t *slot_body; const uint8_t *slot_static; const double *slot_pos, *slot_rot;
+  const int64_t *slot_type; const double *slot_size;
+  const int64_t *pair_a, *pair_b; const double *pair_margin, *pair_reach;
+  const int64_t *pair_kind; const double *pair_fixed;
+  const int64_t *cover_start; const double *cover_pos, *cover_radius;
+  const uint8_t *slot_turned;
+} Scene;
+
+/* One call's lanes: start[nq][L], change[nq][L], t[L], cap[L], rates[npair][L] in;
+ * step[L] out; work: body, slot and cover frames; width: lanes 0 .. width - 1 are
+ * bounded (rounded up to a multiple of 4, a SIMD register of doubles), the rest left. */
+typedef struct {
+  const double *start, *change, *t, *cap, *rates;
+  double *step, *work;
+  int64_t width;
+} Block;
+
+/* fdlibm's reduction by pi/2 and its sine and cosine kernels on [-pi/4, pi/4] (within an
+ * ulp), branch-free so that the lanes vectorise. */
+static const double PIO2_1 = 1.57079632673412561417e+00, PIO2_1T = 6.07710050650619224932e-11;
+static const double S1 = -1.66666666666666324348e-01, S2 = 8.33333333332248946124e-03,
+                    S3 = -1.98412698298579493134e-04, S4 = 2.75573137070700676789e-06,
+                    S5 = -2.50507602534068634195e-08, S6 = 1.58969099521155010221e-10;
+static const double C1 = 4.16666666666666019037e-02, C2 = -1.38888888888741095749e-03,
+                    C3 = 2.48015872894767294178e-05, C4 = -2.75573143513906633035e-07,
+                    C5 = 2.08757232129817482790e-09, C6 = -1.13596475577881948265e-11;
+
+static void sin_cos(int W, const double *restrict x, double *restrict sine, double *restrict cosine) {
+  for (int l = 0; l < W; l++) {
+    double k = floor(x[l] * 0.63661977236758134308 + 0.5);
+    double r = (x[l] - k * PIO2_1) - k * PIO2_1T, z = r * r;
+    double s = r + r * z * (S1 + z * (S2 + z * (S3 + z * (S4 + z * (S5 + z * S6)))));
+    double c = 1.0 - 0.5 * z + z * z * (C1 + z * (C2 + z * (C3 + z * (C4 + z * (C5 + z * C6)))));
+    int64_t q = (int64_t)k;
+    double odd_s = (q & 1) ? c : s, odd_c = (q & 1) ? s : c;
+    sine[l] = (q & 2) ? -odd_s : odd_s;
+    cosine[l] = ((q + 1) & 2) ? -odd_c : odd_c;
+  }
+}
+
+/* Frames of the moving bodies for every lane, composed as the scalar kernels (and
+ * mj_kinematics) do: the parent's frame times the body offset, then each joint. */
+static void forward(int W, const Scene *S, const Block *B, double *restrict xl, double *restrict ml) {
+  double angle[L], sine[L], cosine[L];
+  const double *restrict t = B->t;
+  for (int64_t b = 0; b < S->nbody; b++) {
+    double *restrict X = xl + b * 3 * L, *restrict M = ml + b * 9 * L;
+    if (S->body_flags[b] & 1) {  /* static: its frame from the model */
+      for (int i = 0; i < 3; i++)
+        for (int l = 0; l < W; l++) X[i * L + l] = S->body_xpos[3 * b + i];
+      for (int i = 0; i < 9; i++)
+        for (int l = 0; l < W; l++) M[i * L + l] = S->body_xmat[9 * b + i];
+      continue;
+    }
+    const double *restrict PX = xl + S->body_parent[b] * 3 * L;
+    const double *restrict PM = ml + S->body_parent[b] * 9 * L;
+    const double *p = S->body_pos + 3 * b, *r = S->body_rot + 9 * b;
+    for (int i = 0; i < 3; i++)
+      for (int l = 0; l < W; l++)
+        X[i * L + l] = PX[i * L + l] + PM[3 * i * L + l] * p[0] + PM[(3 * i + 1) * L + l] * p[1]
+                       + PM[(3 * i + 2) * L + l] * p[2];
+    for (int i = 0; i < 3; i++)
+      for (int k = 0; k < 3; k++)
+        for (int l = 0; l < W; l++)
+          M[(3 * i + k) * L + l] = PM[3 * i * L + l] * r[k] + PM[(3 * i + 1) * L + l] * r[3 + k]
+                                   + PM[(3 * i + 2) * L + l] * r[6 + k];
+    for (int64_t j = S->body_jntadr[b]; j < S->body_jntadr[b] + S->body_jntnum[b]; j++) {
+      int64_t adr = S->jnt_qposadr[j];
+      const double *restrict start = B->start + adr * L, *restrict change = B->change + adr * L;
+      double zero = S->qpos0[adr];
+      for (int l = 0; l < W; l++) angle[l] = (start[l] + t[l] * change[l]) - zero;
+      const double *u = S->jnt_axis + 3 * j, *a = S->jnt_pos + 3 * j;
+      if (S->jnt_type[j] == SLIDE) {
+        for (int i = 0; i < 3; i++)
+          for (int l = 0; l < W; l++)
+            X[i * L + l] += angle[l] * (M[3 * i * L + l] * u[0] + M[(3 * i + 1) * L + l] * u[1]
+                                        + M[(3 * i + 2) * L + l] * u[2]);
+        continue;
+      }
+      sin_cos(W, angle, sine, cosine);
+      double ux = u[0], uy = u[1], uz = u[2];
+      for (int l = 0; l < W; l++) {  /* a turn about the hinge's anchor (Rodrigues) */
+        double c = cosine[l], s = sine[l], v = 1.0 - c;
+        double r00 = c + v * ux * ux, r01 = v * ux * uy - s * uz, r02 = v * ux * uz + s * uy;
+        double r10 = v * ux * uy + s * uz, r11 = c + v * uy * uy, r12 = v * uy * uz - s * ux;
+        double r20 = v * ux * uz - s * uy, r21 = v * uy * uz + s * ux, r22 = c + v * uz * uz;
+        for (int i = 0; i < 3; i++) {
+          double m0 = M[3 * i * L + l], m1 = M[(3 * i + 1) * L + l], m2 = M[(3 * i + 2) * L + l];
+          double anchor = X[i * L + l] + m0 * a[0] + m1 * a[1] + m2 * a[2];
+          double n0 = m0 * r00 + m1 * r10 + m2 * r20, n1 = m0 * r01 + m1 * r11 + m2 * r21,
+                 n2 = m0 * r02 + m1 * r12 + m2 * r22;
+          M[3 * i * L + l] = n0;
+          M[(3 * i + 1) * L + l] = n1;
+          M[(3 * i + 2) * L + l] = n2;
+          X[i * L + l] = anchor - (n0 * a[0] + n1 * a[1] + n2 * a[2]);
+        }
+      }
+    }
+  }
+}
+
+/* Centres of the moving slots, frames of those that are some pair's moving partner, and
+ * the cover spheres' centres. */
+static void place(int W, const Scene *S, const double *restrict xl, const double *restrict ml,
+                  double *restrict wl, double *restrict rl, double *restrict cl) {
+  for (int64_t s = 0; s < S->nslot; s++) {
+    if (S->slot_static[s]) continue;
+    int64_t b = S->slot_body[s];
+    const double *restrict X = xl + b * 3 * L, *restrict M = ml + b * 9 * L;
+    const double *p = S->slot_pos + 3 * s, *q = S->slot_rot + 9 * s;
+    double *restrict Y = wl + s * 3 * L, *restrict R = rl + s * 9 * L;
+    for (int i = 0; i < 3; i++)
+      for (int l = 0; l < W; l++)
+        Y[i * L + l] = X[i * L + l] + M[3 * i * L + l] * p[0] + M[(3 * i + 1) * L + l] * p[1]
+                       + M[(3 * i + 2) * L + l] * p[2];
+    if (S->slot_turned[s])
+      for (int i = 0; i < 3; i++)
+        for (int k = 0; k < 3; k++)
+          for (int l = 0; l < W; l++)
+            R[(3 * i + k) * L + l] = M[3 * i * L + l] * q[k] + M[(3 * i + 1) * L + l] * q[3 + k]
+                                     + M[(3 * i + 2) * L + l] * q[6 + k];
+    for (int64_t c = S->cover_start[s]; c < S->cover_start[s + 1]; c++) {
+      const double *o = S->cover_pos + 3 * c;
+      double *restrict C = cl + c * 3 * L;
+      for (int i = 0; i < 3; i++)
+        for (int l = 0; l < W; l++)
+          C[i * L + l] = X[i * L + l] + M[3 * i * L + l] * o[0] + M[(3 * i + 1) * L + l] * o[1]
+                         + M[(3 * i + 2) * L + l] * o[2];
+    }
+  }
+}
+
+/* fine[l] = min over a's cover spheres of (distance of the centre to b's container) less
+ * the sphere's radius, in b's frame (static: the scene's; moving: each lane's). */
+static void cover_gaps(int W, const Scene *S, int64_t a, int64_t b, const double *restrict wl,
+                       const double *restrict rl, const double *restrict cl,
+                       double *restrict fine) {
+  double lx[L], ly[L], lz[L];
+  const double *size = S->slot_size + 3 * b;
+  double s0 = size[0], s1 = size[1], s2 = size[2];
+  int64_t kind = S->slot_type[b];
+  const double *restrict WB = wl + b * 3 * L, *restrict R = rl + b * 9 * L;
+  for (int l = 0; l < W; l++) fine[l] = INFINITY;
+  for (int64_t c = S->cover_start[a]; c < S->cover_start[a + 1]; c++) {
+    const double *restrict C = cl + c * 3 * L;
+    double radius = S->cover_radius[c];
+    if (S->slot_static[b]) {
+      const double *o = S->slot_pos + 3 * b, *q = S->slot_rot + 9 * b;
+      for (int l = 0; l < W; l++) {
+        double dx = C[l] - o[0], dy = C[L + l] - o[1], dz = C[2 * L + l] - o[2];
+        lx[l] = q[0] * dx + q[3] * dy + q[6] * dz;
+        ly[l] = q[1] * dx + q[4] * dy + q[7] * dz;
+        lz[l] = q[2] * dx + q[5] * dy + q[8] * dz;
+      }
+    } else {
+      for (int l = 0; l < W; l++) {
+        double dx = C[l] - WB[l], dy = C[L + l] - WB[L + l], dz = C[2 * L + l] - WB[2 * L + l];
+        lx[l] = R[l] * dx + R[3 * L + l] * dy + R[6 * L + l] * dz;
+        ly[l] = R[L + l] * dx + R[4 * L + l] * dy + R[7 * L + l] * dz;
+        lz[l] = R[2 * L + l] * dx + R[5 * L + l] * dy + R[8 * L + l] * dz;
+      }
+    }
+    switch (kind) {
+    case SPHERE:
+      for (int l = 0; l < W; l++)
+        fine[l] = MIN(fine[l], sqrt(lx[l] * lx[l] + ly[l] * ly[l] + lz[l] * lz[l]) - s0 - radius);
+      break;
+    case CAPSULE:
+      for (int l = 0; l < W; l++) {
+        double z = lz[l] - MIN(MAX(lz[l], -s1), s1);
+        fine[l] = MIN(fine[l], sqrt(lx[l] * lx[l] + ly[l] * ly[l] + z * z) - s0 - radius);
+      }
+      break;
+    case BOX:
+      for (int l = 0; l < W; l++) {
+        double ex = MAX(fabs(lx[l]) - s0, 0.0), ey = MAX(fabs(ly[l]) - s1, 0.0),
+               ez = MAX(fabs(lz[l]) - s2, 0.0);
+        fine[l] = MIN(fine[l], sqrt(ex * ex + ey * ey + ez * ez) - radius);
+      }
+      break;
+    case CYLINDER:
+      for (int l = 0; l < W; l++) {
+        double er = MAX(sqrt(lx[l] * lx[l] + ly[l] * ly[l]) - s0, 0.0),
+               ez = MAX(fabs(lz[l]) - s1, 0.0);
+        fine[l] = MIN(fine[l], sqrt(er * er + ez * ez) - radius);
+      }
+      break;
+    default: /* PLANE: the half-space below its z = 0 */
+      for (int l = 0; l < W; l++) fine[l] = MIN(fine[l], lz[l] - radius);
+    }
+  }
+}
+
+void lane_block(const Scene *S, Block *B) {
+  double gap[L], fine[L];
+  double *steps = B->step;
+  double *xl = B->work, *ml = xl + S->nbody * 3 * L, *wl = ml + S->nbody * 9 * L;
+  double *rl = wl + S->nslot * 3 * L, *cl = rl + S->nslot * 9 * L;
+  int W = (int)((B->width + 3) & ~(int64_t)3);
+  if (W > L) W = L;
+  forward(W, S, B, xl, ml);
+  place(W, S, xl, ml, wl, rl, cl);
+  for (int l = 0; l < W; l++) steps[l] = B->cap[l];
+  for (int64_t k = 0; k < S->npair; k++) {
+    int64_t kind = S->pair_kind[k];
+    if (kind == OUT_OF_REACH) continue;
+    int64_t a = S->pair_a[k], b = S->pair_b[k];
+    const double *restrict rate = B->rates + k * L, *f = S->pair_fixed + 6 * k;
+    const double *restrict WA = wl + a * 3 * L, *restrict WB = wl + b * 3 * L;
+    double reach = S->pair_reach[k];
+    /* The bounding spheres (a half-space for a plane) first. */
+    if (kind == FIXED_HALF_SPACE) {
+      for (int l = 0; l < W; l++)
+        gap[l] = f[3] * (WA[l] - f[0]) + f[4] * (WA[L + l] - f[1]) + f[5] * (WA[2 * L + l] - f[2])
+                 - reach;
+    } else {
+      for (int l = 0; l < W; l++) {
+        double dx = WA[l] - (kind == FIXED_SPHERE ? f[0] : WB[l]);
+        double dy = WA[L + l] - (kind == FIXED_SPHERE ? f[1] : WB[L + l]);
+        double dz = WA[2 * L + l] - (kind == FIXED_SPHERE ? f[2] : WB[2 * L + l]);
+        gap[l] = sqrt(dx * dx + dy * dy + dz * dz) - reach;
+      }
+    }
+    int far = 1;
+    for (int l = 0; l < W; l++) far &= gap[l] - SLACK >= rate[l] * steps[l];
+    if (far) continue;
+    if (S->cover_start[a] == S->cover_start[a + 1] || S->slot_type[b] == UNBOUNDED) {
+      for (int l = 0; l < W; l++) fine[l] = -INFINITY;
+    } else {
+      cover_gaps(W, S, a, b, wl, rl, cl, fine);
+    }
+    double margin = S->pair_margin[k];
+    for (int l = 0; l < W; l++) {
+      double g = MAX(gap[l], fine[l] - margin) - SLACK;
+      double step = rate[l] > 0.0 ? g / rate[l] : INFINITY;
+      steps[l] = MIN(steps[l], g > 0.0 ? step : -1.0);
+    }
+  }
+}

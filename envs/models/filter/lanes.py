@@ -1,0 +1,223 @@
+"""Lanes: 16 path samples bounded in one call of a small C kernel (``lanes.c``).
+
+The scalar kernels bound one sample at a time. A path check of two or more paths keeps
+up to 16 of them in flight instead, each with the scalar loop's raked search, started
+from several intervals at once when the call has few paths (``kernels._lane_paths``):
+each round, the next interval of every path in turn fills the lanes, and the kernel's
+``lane_block`` bounds their middle samples at once, returning per lane a free step (every
+pair farther than its margin within it) or "not proven"; a sample the lanes do not prove
+goes to the scalar kernel, witnesses and MuJoCo exactly as before. So the lanes only ever
+prove samples *free*, and every verdict and first colliding sample stays MuJoCo's.
+
+The lanes' bounds hold each moving geom's container in spheres on its axis
+(:func:`covers`): a cover sphere's centre measured to the partner's container, less its
+radius, bounds the pair's distance from below. They are looser than the scalar kernel's
+(which measure the containers themselves and use each sample's local speeds), and much
+cheaper: structure-of-arrays, every inner loop one run of SIMD instructions over the
+lanes (``docs/models.md`` has the measurements, and why C rather than numba).
+
+The C source is compiled on first use with the system's C compiler (``cc``, or ``CC``)
+into the kernels' cache directory (``envs.jit``), keyed by a hash of the source, the
+flags and the processor's features, as numba caches its kernels; ``make`` does it ahead.
+Without a compiler the filter runs its scalar kernels only (same verdicts, slower), and
+says so once. A model whose moving geoms the covers cannot hold (a box, a mesh, a moving
+plane) runs the scalar kernels too.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import functools
+import hashlib
+import math
+import os
+import platform
+import shutil
+import subprocess
+import tempfile
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from ...jit import cache_directory
+from .layout import CAPSULE, CYLINDER, SPHERE, CompiledScene
+
+#: Samples per call (the C kernel's ``L``).
+LANES = 16
+#: A cover sphere's centres lie at most this fraction of the geom's radius apart (half
+#: spacing): a capsule or cylinder of radius r is held by spheres of radius ≤ 1.118·r.
+COVER_SPACING = 0.5
+
+_SOURCE = Path(__file__).with_name("lanes.c")
+_FLAGS = ("-O3", "-march=native", "-fno-math-errno", "-shared", "-fPIC")
+
+
+def covers(scene: CompiledScene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Spheres that hold each moving slot's container, in its body's frame: (start (S+1,),
+    centres (C, 3), radii (C,)); slot s owns rows ``start[s]:start[s + 1]``, none for a
+    static slot or one whose kind has no cover here (a box, a mesh's box, unbounded).
+
+    A capsule of radius r and half-length h: m = ⌈h/(``COVER_SPACING``·r)⌉ spheres of
+    radius √(r² + (h/m)²) centred at −h + (2i + 1)·h/m on its axis hold its cylinder part
+    (each the slab of height 2h/m around its centre), and a sphere of radius r at each end
+    its caps; a cylinder the same without the caps; a sphere itself. The radii carry a
+    relative 1e-12 (and 1e-12 m) for rounding."""
+    start, centres, radii = [0], [], []
+    for s in range(len(scene.slot_type)):
+        rows: list[tuple[float, float]] = []  # (offset along the axis, radius)
+        kind, size = int(scene.slot_type[s]), scene.slot_size[0, s]
+        if not scene.slot_static[s]:
+            r, h = float(size[0]), float(size[1])
+            if kind == SPHERE:
+                rows = [(0.0, r)]
+            elif kind in (CAPSULE, CYLINDER):
+                m = max(1, math.ceil(h / (COVER_SPACING * r))) if h > 0.0 else 1
+                half = h / m
+                rows = [(-h + half * (2 * i + 1), math.hypot(r, half)) for i in range(m)]
+                if kind == CAPSULE:
+                    rows += [(-h, r), (h, r)]
+        pos, rot = scene.slot_pos[0, s], scene.slot_rot[0, s]
+        for offset, radius in rows:
+            centres.append(pos + rot[:, 2] * offset)
+            radii.append(radius * (1.0 + 1e-12) + 1e-12)
+        start.append(len(centres))
+    return (np.array(start, dtype=np.int64), np.array(centres, dtype=np.float64).reshape(-1, 3),
+            np.array(radii, dtype=np.float64))
+
+
+def _processor() -> str:
+    """What ``-march=native`` depends on: the machine and its CPU flags."""
+    flags = ""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as info:
+            flags = next((line for line in info if line.startswith("flags")), "")
+    except OSError:
+        pass
+    return platform.machine() + flags
+
+
+@functools.cache
+def library() -> ctypes.CDLL | None:
+    """The compiled lane kernel (built on first use, then loaded from the cache), or None
+    where no C compiler or cache directory is available."""
+    compiler = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
+    directory = cache_directory()
+    if compiler is None or directory is None or not _SOURCE.exists():
+        warnings.warn(f"no C compiler, cache directory or {_SOURCE.name}: the collision "
+                      "filter runs without its lanes (same verdicts, slower)", RuntimeWarning,
+                      stacklevel=2)
+        return None
+    digest = hashlib.sha256(_SOURCE.read_bytes() + repr((compiler, _FLAGS, _processor()))
+                            .encode()).hexdigest()[:16]
+    target = Path(directory) / f"lanes-{digest}.so"
+    if not target.exists():
+        with tempfile.TemporaryDirectory(dir=directory) as scratch:
+            built = Path(scratch) / target.name
+            try:
+                result = subprocess.run([compiler, *_FLAGS, str(_SOURCE), "-o", str(built),
+                                         "-lm"], capture_output=True, text=True, check=False)
+                problem = result.stderr.strip()[:500] if result.returncode else ""
+            except OSError as error:
+                problem = str(error)
+            if problem or not built.exists():
+                warnings.warn(f"the collision filter's lanes did not compile ({compiler}): "
+                              f"{problem}; running without them", RuntimeWarning, stacklevel=2)
+                return None
+            os.replace(built, target)  # atomic: parallel processes may build it too
+    return ctypes.CDLL(str(target))
+
+
+_POINTERS = ("body_parent body_pos body_rot body_jntadr body_jntnum body_flags jnt_type "
+             "jnt_qposadr jnt_pos jnt_axis qpos0 body_xpos body_xmat slot_body slot_static "
+             "slot_pos slot_rot slot_type slot_size pair_a pair_b pair_margin pair_reach "
+             "pair_kind pair_fixed cover_start cover_pos cover_radius slot_turned").split()
+
+
+class _Scene(ctypes.Structure):
+    """``Scene`` of lanes.c: counts, then the arrays' addresses."""
+
+    _fields_ = [("nbody", ctypes.c_int64), ("nslot", ctypes.c_int64),
+                ("npair", ctypes.c_int64)] + [(name, ctypes.c_void_p) for name in _POINTERS]
+
+
+class LaneScene:
+    """One scene of a filter as the lane kernel reads it: the ``Scene`` struct, pointing
+    at ``scene``'s arrays (its per-scene fields' only row: a filter's own, or its row of a
+    stack's, so that refreshed clutter is read in place) and at the covers. ``address`` is
+    0 where the lanes cannot serve the model (:func:`usable`) or were not built."""
+
+    def __init__(self, scene: CompiledScene) -> None:
+        self._arrays: list[np.ndarray] = []  # kept alive while the struct points at them
+        self.address = self.function = 0
+        lib = library()
+        self.covers = covers(scene)
+        #: Doubles of a call's work array.
+        self.work_doubles = work_size(scene, len(self.covers[2]))
+        if lib is None or not usable(scene, self.covers[0]):
+            return
+        turned = np.zeros(len(scene.slot_type), dtype=np.uint8)
+        turned[scene.pair_b[~scene.slot_static[scene.pair_b]]] = 1
+        fields = {name: getattr(scene, name) for name in _POINTERS if hasattr(scene, name)}
+        fields["slot_static"] = scene.slot_static.astype(np.uint8)
+        fields.update(cover_start=self.covers[0], cover_pos=self.covers[1],
+                      cover_radius=self.covers[2], slot_turned=turned)
+        struct = _Scene(nbody=len(scene.body_parent), nslot=len(scene.slot_type),
+                        npair=len(scene.pair_a))
+        for name in _POINTERS:
+            array = fields[name]
+            if array.ndim and array.shape[0] == 1 and name in _ROW:
+                array = array[0]  # the scene's row
+            if not array.flags.c_contiguous:
+                raise ValueError(f"lane scene: {name} is not contiguous")
+            self._arrays.append(array)
+            setattr(struct, name, array.ctypes.data)
+        self._struct = struct
+        self._call = lib.lane_block
+        self._call.argtypes, self._call.restype = [ctypes.c_void_p, ctypes.c_void_p], None
+        self.address = ctypes.addressof(struct)
+        self.function = ctypes.cast(lib.lane_block, ctypes.c_void_p).value or 0
+        self._sizes = (len(scene.body_parent), len(scene.pair_a), len(scene.qpos0))
+
+    def bound(self, start: np.ndarray, change: np.ndarray, t: np.ndarray, cap: np.ndarray,
+              rates: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """One call of the kernel from Python (tests, benchmarks): ``start`` and ``change``
+        (LANES, nq) full qpos rows, ``t`` and ``cap`` (LANES,), ``rates`` (LANES, pairs).
+        Returns the steps (LANES,) and every body's frame per lane: positions
+        (nbody, 3, LANES) and rotations (nbody, 3, 3, LANES)."""
+        if not self.address:
+            raise ValueError("this filter has no lanes (LaneScene.address is 0)")
+        nbody, npair, nq = self._sizes
+        inputs = [np.ascontiguousarray(np.asarray(a, dtype=np.float64).T)
+                  for a in (start, change)]
+        inputs += [np.ascontiguousarray(t, dtype=np.float64),
+                   np.ascontiguousarray(cap, dtype=np.float64),
+                   np.ascontiguousarray(np.asarray(rates, dtype=np.float64).T)]
+        shapes = [(nq, LANES), (nq, LANES), (LANES,), (LANES,), (npair, LANES)]
+        for array, shape in zip(inputs, shapes, strict=True):
+            if array.shape != shape:
+                raise ValueError(f"lane inputs: expected shape {shape}, got {array.shape}")
+        steps, work = np.zeros(LANES), np.zeros(self.work_doubles)
+        block = np.array([a.ctypes.data for a in (*inputs, steps, work)] + [LANES],
+                         dtype=np.uint64)
+        self._call(self.address, block.ctypes.data)
+        frames = work[: LANES * 12 * nbody]
+        return (steps, frames[: LANES * 3 * nbody].reshape(nbody, 3, LANES),
+                frames[LANES * 3 * nbody :].reshape(nbody, 3, 3, LANES))
+
+
+#: The struct's fields that are per-scene arrays (a leading scene axis of length 1).
+_ROW = frozenset({"slot_pos", "slot_rot", "slot_size", "pair_fixed", "pair_reach",
+                  "pair_kind"})
+
+
+def usable(scene: CompiledScene, cover_start: np.ndarray) -> bool:
+    """The lanes serve ``scene`` when every moving slot that is some pair's first (the one
+    they measure by its covers) has covers."""
+    owned = np.diff(cover_start)
+    return bool(np.all(owned[np.unique(scene.pair_a)] > 0)) if len(scene.pair_a) else False
+
+
+def work_size(scene: CompiledScene, n_covers: int) -> int:
+    """Doubles of a call's work array: body frames, slot frames and cover centres."""
+    return LANES * (12 * len(scene.body_parent) + 12 * len(scene.slot_type) + 3 * n_covers)

@@ -1,0 +1,157 @@
+"""The lanes prove only what holds: their covers hold the geoms, their frames are MuJoCo's,
+a step they prove is free at every grid sample within it, and the path checks that use them
+answer exactly as without them."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from ikbranch_gym.envs.kinematics import make_arm
+from ikbranch_gym.envs.models import CollisionChecker, build_model
+from ikbranch_gym.envs.models.filter import COUNTERS
+from ikbranch_gym.envs.models.filter.kernels import LANE_FUNCTION
+from ikbranch_gym.envs.models.filter.lanes import LANES, library
+from ikbranch_gym.envs.models.filter.layout import CYLINDER, SPHERE
+
+#: Arms whose moving geoms the covers hold (capsules, cylinders), each in its clutter.
+ARMS = ["ur5e", "kuka_kr6_r700", "abb_irb2600", "opw"]
+
+
+def _checker(arm_name: str, backend: str = "compiled") -> CollisionChecker:
+    return CollisionChecker(build_model(arm_name, "random_clutter", seed=3),
+                            dof=make_arm(arm_name).dof, backend=backend)
+
+
+def _surface(kind: int, size: np.ndarray, rng: np.random.Generator, count: int) -> np.ndarray:
+    """Points on the surface of a container (its frame): the farthest from its axis."""
+    r, h = size[0], size[1]
+    angle = rng.uniform(0.0, 2.0 * np.pi, count)
+    if kind == SPHERE:
+        v = rng.normal(size=(count, 3))
+        return r * v / np.linalg.norm(v, axis=1, keepdims=True)
+    z = rng.uniform(-h, h, count)
+    side = np.column_stack([r * np.cos(angle), r * np.sin(angle), z])
+    if kind == CYLINDER:  # the side, and the two faces out to their rims
+        rho = r * np.sqrt(rng.uniform(0.0, 1.0, count))
+        face = np.column_stack([rho * np.cos(angle), rho * np.sin(angle),
+                                h * rng.choice([-1.0, 1.0], count)])
+        return np.vstack([side, face])
+    v = rng.normal(size=(count, 3))  # CAPSULE: the side, and the caps
+    cap = r * v / np.linalg.norm(v, axis=1, keepdims=True)
+    cap[:, 2] = np.abs(cap[:, 2]) * rng.choice([-1.0, 1.0], count)
+    cap[:, 2] += np.sign(cap[:, 2]) * h
+    return np.vstack([side, cap])
+
+
+@pytest.mark.parametrize("arm_name", ARMS)
+def test_the_covers_hold_every_moving_container(arm_name):
+    scene = _checker(arm_name)._filter.scene
+    start, centres, radii = _checker(arm_name)._filter.lanes.covers
+    rng = np.random.default_rng(1)
+    held = 0
+    for s in np.flatnonzero(~scene.slot_static):
+        kind, size = int(scene.slot_type[s]), scene.slot_size[0, s]
+        if start[s] == start[s + 1]:
+            continue
+        points = _surface(kind, size, rng, 5000)
+        body = scene.slot_pos[0, s] + points @ scene.slot_rot[0, s].T
+        mine = slice(start[s], start[s + 1])
+        gaps = np.linalg.norm(body[:, None] - centres[None, mine], axis=2) - radii[None, mine]
+        assert np.all(gaps.min(axis=1) <= 0.0), f"slot {s}: a point outside every cover"
+        # ... and not by much: a cover sphere's radius is at most √1.25 times the geom's.
+        assert radii[mine].max() <= 1.12 * size[0] + 1e-9
+        held += 1
+    assert held >= 6
+
+
+@pytest.mark.parametrize("arm_name", ARMS)
+def test_the_lanes_frames_are_mujocos(arm_name):
+    checker = _checker(arm_name)
+    lanes, model = checker._filter.lanes, checker.model
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(2)
+    nq, dof = model.nq, checker.dof
+    start = np.tile(model.qpos0, (LANES, 1))
+    start[:, :dof] = rng.uniform(-3.0 * np.pi, 3.0 * np.pi, (LANES, dof))  # every quadrant
+    change = np.zeros((LANES, nq))
+    change[:, :dof] = rng.uniform(-2.0, 2.0, (LANES, dof))
+    t = rng.uniform(0.0, 1.0, LANES)
+    npair = len(checker._filter.scene.pair_a)
+    _, xpos, xmat = lanes.bound(start, change, t, np.zeros(LANES), np.zeros((LANES, npair)))
+    for lane in range(LANES):
+        data.qpos[:] = start[lane] + t[lane] * change[lane]
+        mujoco.mj_kinematics(model, data)
+        np.testing.assert_allclose(xpos[..., lane], data.xpos, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(xmat[..., lane], data.xmat.reshape(-1, 3, 3), rtol=0,
+                                   atol=1e-12)
+
+
+@pytest.mark.parametrize("arm_name", ARMS)
+def test_a_step_the_lanes_prove_is_free_at_every_grid_sample_within_it(arm_name):
+    checker, loop = _checker(arm_name), _checker(arm_name, backend="loop")
+    lanes, scene = checker._filter.lanes, checker._filter.scene
+    arm = make_arm(arm_name)
+    rng = np.random.default_rng(4)
+    lower, upper = arm.joint_limits[:, 0], arm.joint_limits[:, 1]
+    nq, dof = checker.model.nq, checker.dof
+    proved = unproved = 0
+    for _ in range(12):
+        q0 = rng.uniform(lower, upper, (LANES, dof))
+        q1 = np.clip(q0 + rng.uniform(-0.3, 0.3, q0.shape) * (upper - lower), lower, upper)
+        n = checker.n_steps(q0, q1)
+        mid = rng.integers(0, n + 1)
+        start, change = np.tile(checker.model.qpos0, (LANES, 1)), np.zeros((LANES, nq))
+        start[:, :dof], change[:, :dof] = q0, q1 - q0
+        rates = np.abs(q1 - q0) @ scene.pair_lever[0][:dof]
+        cap = rng.uniform(0.0, 0.3, LANES)
+        steps, _, _ = lanes.bound(start, change, mid / n, cap, rates)
+        assert np.all(steps <= cap)
+        for lane in range(LANES):
+            if steps[lane] < 0.0:
+                unproved += 1
+                continue
+            proved += 1
+            reach = int(steps[lane] * n[lane])
+            grid = np.arange(max(mid[lane] - reach, 0), min(mid[lane] + reach, n[lane]) + 1)
+            samples = q0[lane] + (grid / n[lane])[:, None] * (q1[lane] - q0[lane])
+            assert not loop.collides(samples).any()
+    assert proved > 0.2 * 12 * LANES and unproved > 0
+
+
+@pytest.mark.parametrize("arm_name", ARMS)
+def test_path_checks_answer_the_same_with_the_lanes_as_without(arm_name):
+    checker = _checker(arm_name)
+    arm = make_arm(arm_name)
+    rng = np.random.default_rng(5)
+    q0 = rng.uniform(arm.joint_limits[:, 0], arm.joint_limits[:, 1], (400, arm.dof))
+    q1 = rng.uniform(arm.joint_limits[:, 0], arm.joint_limits[:, 1], (400, arm.dof))
+    lanes = COUNTERS.index("lane samples")
+    exact, counters = checker._filter._exact, checker._filter.counters
+    function = int(exact[0, LANE_FUNCTION])
+    assert function != 0
+    answers = []
+    for on in (function, 0):
+        exact[0, LANE_FUNCTION] = on
+        before = counters[lanes]
+        answers.append((checker.paths_collide(q0, q1), *checker.check_paths(q0, q1)))
+        assert (counters[lanes] > before) == bool(on)
+    for with_lanes, without in zip(*answers, strict=True):
+        np.testing.assert_array_equal(with_lanes, without)
+    exact[0, LANE_FUNCTION] = function
+    before = counters[lanes]
+    checker.check_path(q0[0], q1[0])  # one path: the scalar kernel alone
+    assert counters[lanes] == before
+
+
+def test_geoms_the_covers_cannot_hold_leave_the_filter_without_lanes():
+    # The anthropomorphic arm's housings are boxes: its filter checks with the scalar
+    # kernels alone (and its exactness suite passes there).
+    assert _checker("anthropomorphic")._filter.lanes.address == 0
+
+
+def test_without_a_c_compiler_the_lanes_say_so_and_stay_off(monkeypatch):
+    monkeypatch.setenv("CC", "/nonexistent/cc")
+    with pytest.warns(RuntimeWarning, match="did not compile"):
+        assert library.__wrapped__() is None
