@@ -31,7 +31,9 @@ margined model, which the filter reads): ``--configs`` uniform configurations th
 ``CompiledFilter.collide`` (asserted equal to MuJoCo's ncon > 0 on every one), and
 ``--env-paths`` verdict-only clutter paths through ``rows_paths_collide`` (per bounded
 sample with the scalar kernel alone, and per path with and without the lanes, which bound
-16 samples a call: ``envs/models/filter/lanes.py``; the verdicts asserted equal), against
+16 samples a call: ``envs/models/filter/lanes.py``; the verdicts asserted equal; and the
+lane kernel alone, ns per lane of a call from a numba loop on 16 of these paths' middle
+samples), against
 ``mj_kinematics`` + ``mj_collision`` per configuration on a fresh
 ``MjData``, called from a Python loop (``data.qpos[:dof] = q``, reading ``ncon``) and from
 a tight loop (qpos through a preallocated view, nothing read), and from a numba loop that
@@ -62,7 +64,13 @@ from ikbranch_gym.envs.models import (
     native,
 )
 from ikbranch_gym.envs.models.filter import COUNTERS
-from ikbranch_gym.envs.models.filter.kernels import LANE_FUNCTION, _exact_contacts
+from ikbranch_gym.envs.models.filter.kernels import (
+    LANE_FUNCTION,
+    LANE_WORK,
+    _call_lanes,
+    _exact_contacts,
+    _lane_block,
+)
 from ikbranch_gym.envs.models.filter.lanes import LANES
 
 #: The env ids of the last table (``--ids``): their scenes after ``reset(seed=0)``.
@@ -269,7 +277,7 @@ def _beside_mujoco(ids, configs: int, count: int, repeats: int) -> None:
           "| MuJoCo calls % | ns/bounded path sample (scalar kernel alone) "
           "| bounded samples/path | paths hit % | µs/path, scalar kernel alone "
           "| µs/path, with lanes | lane samples/path | scalar samples/path, with lanes "
-          "| ns/lane, a full lane call from Python "
+          "| ns/lane, the lane kernel alone "
           "| ns/configuration MuJoCo (kinematics+collision, numba loop) "
           "| ns MuJoCo, Python loop | ns MuJoCo, tight Python loop | ns its qpos writes alone |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:"
@@ -313,7 +321,8 @@ def _beside_mujoco(ids, configs: int, count: int, repeats: int) -> None:
 
         slots, pairs = len(filt.scene.slot_geom), len(filt.scene.pair_a)
         print(f"| {env_id} | {slots} | {pairs} | {per_config * 1e9:,.0f} "
-              f"| {verdicts.mean():.1%} | {spent['witnessed'] / configs:.2%} "
+              f"| {verdicts.mean():.1%} "
+              f"| {(spent['witnessed'] + spent['lane contacts']) / configs:.2%} "
               f"| {spent['mujoco'] / configs:.2%} | {per_path * 1e9 / bounded * len(q0):,.0f} "
               f"| {bounded / len(q0):.1f} | {hits.mean():.0%} | {per_path * 1e6:.1f} "
               f"| {per_path_lanes * 1e6:.1f} | {with_lanes['lane samples'] / len(q0):.1f} "
@@ -322,22 +331,26 @@ def _beside_mujoco(ids, configs: int, count: int, repeats: int) -> None:
               f"| {plain * 1e9:,.0f} | {tight * 1e9:,.0f} | {writes * 1e9:,.0f} |")
 
 
+@numba.njit
+def _lane_loop(exact, block, counters, calls):
+    for _ in range(calls):
+        _call_lanes(exact, block, LANES, counters)
+
+
 def _lane_call(filt, q0: np.ndarray, q1: np.ndarray, repeats: int) -> float:
-    """Seconds per lane of one full lane call from Python (``LaneScene.bound``: 16 samples
-    in the middle of 16 of these paths, ctypes' overhead included), best of ``repeats``
-    runs of 200 calls."""
-    scene, lanes = filt.scene, filt.lanes
-    dof, nq = q0.shape[1], len(scene.qpos0)
-    start, change = np.tile(scene.qpos0, (LANES, 1)), np.zeros((LANES, nq))
-    start[:, :dof], change[:, :dof] = q0[:LANES], q1[:LANES] - q0[:LANES]
-    rates = np.abs(change[:, :dof]) @ scene.pair_lever[0][:dof]
-    t, cap = np.full(LANES, 0.5), np.full(LANES, 1.0 / 64)
-
-    def calls() -> None:
-        for _ in range(200):
-            lanes.bound(start, change, t, cap, rates)
-
-    return _best(calls, repeats) / (200 * LANES)
+    """Seconds per lane of the lane kernel alone: 16 samples, each in the middle of one of
+    these paths with a step of 1/64 of it asked, bounded again and again by a numba loop
+    of calls (no Python per call), best of ``repeats`` runs of 2,000 calls."""
+    scene, exact = filt.scene, filt._exact[0]
+    dof = q0.shape[1]
+    arrays, block = _lane_block(scene.qpos0, len(scene.pair_a), int(exact[LANE_WORK]))
+    arrays[0][:dof] = q0[:LANES].T
+    arrays[1][:dof] = (q1[:LANES] - q0[:LANES]).T
+    arrays[2][:], arrays[3][:] = 0.5, 1.0 / 64
+    arrays[4][:] = (np.abs(q1[:LANES] - q0[:LANES]) @ scene.pair_lever[0][:dof]).T
+    counters = np.zeros(len(COUNTERS), dtype=np.int64)
+    _lane_loop(exact, block, counters, 1)
+    return _best(lambda: _lane_loop(exact, block, counters, 2000), repeats) / (2000 * LANES)
 
 
 if __name__ == "__main__":

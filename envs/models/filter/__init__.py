@@ -16,9 +16,10 @@ most samples without MuJoCo. Its rooms:
   separating axes, which never overestimates), of two inner shapes exactly.
 - :mod:`.tree` — **forward kinematics of the tree** in the kernel, slot frames, path
   samples and how fast they move.
-- :mod:`.lanes` — **16 path samples at once**: a small C kernel (``lanes.c``) that proves
-  samples free from cover spheres of the moving geoms, for the path checks of many paths
-  (the samples it does not prove go on to the checks below).
+- :mod:`.lanes` — **16 samples at once**: a small C kernel (``lanes.c``) that proves
+  samples free from cover spheres of the moving geoms, and in contact from points inside
+  them as the witnesses below do, for the checks of several paths or configurations
+  (the samples it proves neither way go on to the checks below).
 - :mod:`.kernels` — **the checks**. At a sample, first every pair's bounding spheres, then
   the containers of the pairs that could matter: a sample at which every pair is provably
   farther than its contact margin (δ, plus ``DISTANCE_TOLERANCE``) is free, exactly as

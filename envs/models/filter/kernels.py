@@ -31,11 +31,12 @@ UNDECIDED, CONTACT = -1.0, -2.0
 BY_BOUNDS, BY_WITNESS, BY_MUJOCO = 0, 1, 2
 #: The filter's counters, in order: samples bounded, MuJoCo checks, exact pair bounds
 #: computed, MuJoCo checks that found no contact (samples free that the bounds could not
-#: prove free), samples a witness (:func:`_witnessed`) proved in contact, path samples the
+#: prove free), samples a witness (:func:`_witnessed`) proved in contact, samples the
 #: lanes bounded (:mod:`.lanes`; those they did not prove free are bounded again, and
-#: counted, as "bounded"), calls of the lane kernel.
+#: counted, as "bounded"), calls of the lane kernel, lane samples the lanes' witnesses
+#: proved in contact (those are not bounded again).
 COUNTERS = ("bounded", "mujoco", "pair bounds", "mujoco found free", "witnessed",
-            "lane samples", "lane calls")
+            "lane samples", "lane calls", "lane contacts")
 #: The fewest paths, and samples a round, worth the lanes (a lane call costs about as much
 #: for one sample as for four): with fewer the scalar kernel bounds them one by one.
 LANE_MIN = 2
@@ -377,10 +378,12 @@ def check_configurations(tree, geometry, motion, exact, scenes, rows, need, verd
     ``BY_MUJOCO``. ``need`` > 0: rows are checked in order until ``need`` free ones are
     found; the rows after are not checked (``out`` and ``how`` −1). ``counters``:
     :data:`COUNTERS`, added to."""
-    xpos, xmat, wpos, wrot, rates, coarse = _work(tree, geometry)
-    kinematic = tree[:12]
-    qpos0 = tree[11]
-    qpos = np.empty(len(qpos0))
+    if rows.shape[0] >= LANE_MIN and exact[scenes[0], LANE_FUNCTION] != 0:
+        _lane_configurations(tree, geometry, motion, exact, scenes, rows, need, verdict, out,
+                             how, counters)
+        return
+    work = _work(tree, geometry)
+    qpos = np.empty(len(tree[11]))
     every_pair = np.full(1, -2, dtype=np.int64)
     free = 0
     entered = -1
@@ -389,26 +392,84 @@ def check_configurations(tree, geometry, motion, exact, scenes, rows, need, verd
             out[i] = how[i] = -1
             continue
         e = scenes[0] if len(scenes) == 1 else scenes[i]
-        scene = _scene(geometry, e)
         if e != entered:
-            _enter(scene, wpos, wrot)
+            _enter(_scene(geometry, e), work[2], work[3])
             entered = e
-        _fill_qpos(qpos, qpos0, rows[i])
-        counters[0] += 1
-        step = _sample_step(kinematic, scene, qpos, xpos, xmat, wpos, wrot, rates, coarse,
-                            0.0, counters, motion, None, verdict, every_pair)
-        if step >= 0.0:
-            out[i], how[i] = 0, BY_BOUNDS
-        elif step == CONTACT:
-            counters[4] += 1
-            out[i], how[i] = 1, BY_WITNESS
-        else:
-            counters[1] += 1
-            out[i], how[i] = _exact_contacts(qpos, exact[e]), BY_MUJOCO
-            if out[i] == 0:
-                counters[3] += 1
+        out[i], how[i] = _configuration(tree, _scene(geometry, e), motion, exact[e], rows[i],
+                                        verdict, qpos, work, every_pair, counters)
         if out[i] == 0:
             free += 1
+
+
+@njit(inline="always")
+def _configuration(tree, scene, motion, exact, row, verdict, qpos, work, every_pair,
+                   counters):
+    """(out, how) of :func:`check_configurations` for one row by the scalar kernel, the
+    witnesses and MuJoCo (the slots' static frames already entered)."""
+    xpos, xmat, wpos, wrot, rates, coarse = work
+    _fill_qpos(qpos, tree[11], row)
+    counters[0] += 1
+    step = _sample_step(tree[:12], scene, qpos, xpos, xmat, wpos, wrot, rates, coarse, 0.0,
+                        counters, motion, None, verdict, every_pair)
+    if step >= 0.0:
+        return 0, BY_BOUNDS
+    if step == CONTACT:
+        counters[4] += 1
+        return 1, BY_WITNESS
+    counters[1] += 1
+    contacts = _exact_contacts(qpos, exact)
+    if contacts == 0:
+        counters[3] += 1
+    return contacts, BY_MUJOCO
+
+
+@njit
+def _lane_configurations(tree, geometry, motion, exact, scenes, rows, need, verdict, out,
+                         how, counters):
+    """:func:`check_configurations` with the rows bounded ``LANES`` at a time (runs of one
+    scene): a row the lanes prove free is free, one they prove in contact (a witness,
+    with ``verdict``) is in contact, any other goes to the scalar kernel as there."""
+    work = _work(tree, geometry)
+    qpos = np.empty(len(tree[11]))
+    every_pair = np.full(1, -2, dtype=np.int64)
+    arrays, block = _lane_block(tree[11], len(geometry[7]), int(exact[scenes[0], LANE_WORK]))
+    start, lane_step = arrays[0], arrays[5]
+    free, entered, i, count = 0, -1, 0, rows.shape[0]
+    while i < count:
+        e = scenes[0] if len(scenes) == 1 else scenes[i]
+        # A call costs about in proportion to its lanes: a few rows a free one wanted.
+        most = LANES if need <= 0 else min(LANES, max(4 * (need - free), 1))
+        width = 0
+        while (i + width < count and width < most
+               and (len(scenes) == 1 or scenes[i + width] == e)):
+            for j in range(rows.shape[1]):
+                start[j, width] = rows[i + width, j]
+            width += 1
+        if width >= LANE_MIN and (need <= 0 or free < need):
+            _call_lanes(exact[e], block, width, counters)
+        else:
+            lane_step[:width] = UNDECIDED
+        for lane in range(width):
+            r = i + lane
+            step = lane_step[lane]
+            if need > 0 and free >= need:
+                out[r] = how[r] = -1
+                continue
+            if step >= 0.0:
+                out[r], how[r] = 0, BY_BOUNDS
+            elif step == CONTACT and verdict:
+                counters[7] += 1
+                out[r], how[r] = 1, BY_WITNESS
+            else:
+                if e != entered:
+                    _enter(_scene(geometry, e), work[2], work[3])
+                    entered = e
+                out[r], how[r] = _configuration(tree, _scene(geometry, e), motion, exact[e],
+                                                rows[r], verdict, qpos, work, every_pair,
+                                                counters)
+            if out[r] == 0:
+                free += 1
+        i += width
 
 
 @njit
@@ -505,9 +566,10 @@ def _lane_paths(tree, geometry, motion, exact, scenes, start_rows, end_rows, ste
     so that one path alone fills the lanes. Each round takes the next interval of every
     path in turn until the lanes are full, bounds the intervals' middle samples in one call
     of the lane kernel (:mod:`.lanes`), and goes on as the scalar loop does: a sample it
-    proves free clears its step on both sides; any other is bounded by the scalar kernel
-    (witnesses, MuJoCo). A finished path's place takes the next path of the same scene; a
-    new scene waits until every path has finished (one call reads one scene)."""
+    proves free clears its step on both sides, one it proves in contact is a contact; any
+    other is bounded by the scalar kernel (witnesses, MuJoCo). A finished path's place
+    takes the next path of the same scene; a new scene waits until every path has
+    finished (one call reads one scene)."""
     xpos, xmat, wpos, wrot, rates, coarse = _work(tree, geometry)
     qpos0 = tree[11]
     nq, npair, count = len(qpos0), len(geometry[7]), len(steps)
@@ -527,17 +589,7 @@ def _lane_paths(tree, geometry, motion, exact, scenes, start_rows, end_rows, ste
     lanes = (np.full(LANES, -1, dtype=np.int64), np.full(LANES, -1, dtype=np.int64),
              np.zeros(LANES, dtype=np.int64), np.zeros(LANES, dtype=np.int64),
              np.zeros(LANES, dtype=np.int64))
-    # The lane kernel's Block (lanes.c): start, change, t, cap, rates, steps, work, width.
-    block_arrays = (np.empty((nq, LANES)), np.zeros((nq, LANES)), np.zeros(LANES),
-                    np.zeros(LANES), np.zeros((npair, LANES)), np.zeros(LANES),
-                    np.empty(int(exact[scenes[0], LANE_WORK])))
-    for j in range(nq):
-        block_arrays[0][j, :] = qpos0[j]
-    block = np.empty(8, dtype=np.uint64)
-    block[0], block[1] = block_arrays[0].ctypes.data, block_arrays[1].ctypes.data
-    block[2], block[3] = block_arrays[2].ctypes.data, block_arrays[3].ctypes.data
-    block[4], block[5] = block_arrays[4].ctypes.data, block_arrays[5].ctypes.data
-    block[6] = block_arrays[6].ctypes.data
+    block_arrays, block = _lane_block(qpos0, npair, int(exact[scenes[0], LANE_WORK]))
     # The per-lane work stays in this loop: as an inlined helper taking these arrays
     # (numba reference-counts them per call) it measured 10–25 % slower on whole episodes.
     kinematic, local, every_pair = tree[:12], scalar[9], scalar[10]
@@ -555,17 +607,16 @@ def _lane_paths(tree, geometry, motion, exact, scenes, start_rows, end_rows, ste
             current = -1  # every path of the scene is done: the next scene's
             continue
         e = current
-        if width >= LANE_MIN:
-            _bound_lanes(places, lanes, block_arrays, block, width, exact[e], counters)
-        else:
-            lane_step[:width] = -1.0
+        _bound_lanes(places, lanes, block_arrays, block, width, exact[e], counters)
         for lane in range(width):
             p = owner[lane]
             n, a, b, i = grid[p], lo[lane], hi[lane], mid[lane]
             if i >= found[p] or (not first and found[p] <= n):
                 continue  # above a contact found this round, or the verdict is in
             step = lane_step[lane]
-            if step < 0.0:  # not proven by the lanes: the scalar kernel's sample
+            if step == CONTACT:  # proven in contact by the lanes' witnesses
+                counters[7] += 1
+            elif step < 0.0:  # not proven by the lanes: the scalar kernel's sample
                 if e != entered:
                     _enter(_scene(geometry, e), wpos, wrot)
                     entered = e
@@ -576,13 +627,15 @@ def _lane_paths(tree, geometry, motion, exact, scenes, start_rows, end_rows, ste
                 step = _sample_step(kinematic, _scene(geometry, e), qpos, xpos, xmat, wpos,
                                     wrot, rates, coarse, max(i - a, b - i) / n, counters,
                                     motion, local, True, every_pair)
-                if step < 0.0 and _sample_collides(step, qpos, exact[e], counters):
-                    found[p] = i
-                    if not first:
-                        head[p] = tail[p]  # the verdict is in
-                    else:
-                        tail[p] = _push_interval(queue_lo[p], queue_hi[p], tail[p], a, i - 1)
-                    continue
+                if step < 0.0 and not _sample_collides(step, qpos, exact[e], counters):
+                    step = 0.0  # free as MuJoCo found it
+            if step < 0.0:
+                found[p] = i
+                if not first:
+                    head[p] = tail[p]  # the verdict is in
+                else:
+                    tail[p] = _push_interval(queue_lo[p], queue_hi[p], tail[p], a, i - 1)
+                continue
             scaled = max(step, 0.0) * n
             reach = n if scaled >= n else int(scaled)
             tail[p] = _push_interval(queue_lo[p], queue_hi[p], tail[p], a, i - reach - 1)
@@ -663,7 +716,11 @@ def _gather(places, lanes):
 @njit(inline="always")
 def _bound_lanes(places, lanes, block_arrays, block, width, exact, counters):
     """Load the round's samples into the lane kernel's Block (a lane's start, change and
-    rates only when its path changed) and call it on the first ``width`` lanes."""
+    rates only when its path changed) and call it on the first ``width`` lanes; with
+    fewer than ``LANE_MIN`` they are left undecided (the scalar kernel's)."""
+    if width < LANE_MIN:
+        block_arrays[5][:width] = UNDECIDED
+        return
     path, grid, starts, changes, place_rates = (places[0], places[1], places[7], places[8],
                                                 places[9])
     owner, loaded, lo, hi, mid = lanes
@@ -679,6 +736,29 @@ def _bound_lanes(places, lanes, block_arrays, block, width, exact, counters):
         n = grid[p]
         lane_t[lane] = mid[lane] / n
         lane_cap[lane] = max(mid[lane] - lo[lane], hi[lane] - mid[lane]) / n
+    _call_lanes(exact, block, width, counters)
+
+
+@njit(inline="always")
+def _lane_block(qpos0, npair, work):
+    """The lane kernel's ``Block`` (lanes.c) as an array of addresses, and the arrays they
+    point at: start (qpos0 in every lane), change, t, cap, rates (zero), steps, work."""
+    nq = len(qpos0)
+    arrays = (np.empty((nq, LANES)), np.zeros((nq, LANES)), np.zeros(LANES), np.zeros(LANES),
+              np.zeros((npair, LANES)), np.zeros(LANES), np.empty(work))
+    for j in range(nq):
+        arrays[0][j, :] = qpos0[j]
+    block = np.empty(8, dtype=np.uint64)
+    block[0], block[1] = arrays[0].ctypes.data, arrays[1].ctypes.data
+    block[2], block[3] = arrays[2].ctypes.data, arrays[3].ctypes.data
+    block[4], block[5] = arrays[4].ctypes.data, arrays[5].ctypes.data
+    block[6] = arrays[6].ctypes.data
+    return arrays, block
+
+
+@njit(inline="always")
+def _call_lanes(exact, block, width, counters):
+    """Bound the first ``width`` lanes of ``block`` in the scene of ``exact`` (its row)."""
     block[7] = width
     native.call_model_data(exact[LANE_FUNCTION], exact[LANE_SCENE],  # type: ignore[call-arg]
                            block.ctypes.data)

@@ -1,9 +1,10 @@
-/* Lanes: free steps of 16 path samples at once, for the collision filter's path checks.
+/* Lanes: 16 samples at once, for the collision filter's path and configuration checks.
  *
  * Each lane holds one sample of a linear joint path (its own path: start, change, path
- * parameter t, per-pair rates) and gets a step s >= 0 such that every candidate pair of
- * the scene stays farther than its contact margin for |t' - t| <= s along that path, from
- * lower bounds only; or -1 where these bounds cannot prove the sample itself free (the
+ * parameter t, per-pair rates; a configuration is a path that does not move) and gets a
+ * step s >= 0 such that every candidate pair of the scene stays farther than its contact
+ * margin for |t' - t| <= s along that path, from lower bounds only; or CONTACT (-2) where
+ * a witness proves a pair in contact (witness below); or -1 where neither is proven (the
  * caller then decides that sample exactly). s never exceeds the lane's cap.
  *
  * The bounds: each moving geom's container is held by spheres on its axis (a capsule's or
@@ -14,7 +15,7 @@
  * unit t, as the scalar kernels use it), so a gap g beyond the margin holds for g / rate.
  * Every gap is reduced by SLACK (1e-9 m) for the rounding of these double-precision
  * computations (forward kinematics and the polynomial sine and cosine stay within
- * 1e-12 m of the scalar kernels', tests/envs/models/test_filter_lanes.py).
+ * 1e-12 m of the scalar kernels', tests/envs/models/filter/test_lanes.py).
  *
  * Layout: structure of arrays, the 16 lanes innermost and contiguous, so that every
  * inner loop is one run of SIMD instructions; no per-model code.
@@ -25,6 +26,8 @@
 #define L 16
 #define SLACK 1e-9
 enum { SPHERE, CAPSULE, BOX, CYLINDER, PLANE, UNBOUNDED };
+#define NO_INNER (-1)
+#define CONTACT (-2.0)
 enum { FIXED_SPHERE, FIXED_HALF_SPACE, MOVING_PARTNER, OUT_OF_REACH };
 #define SLIDE 2
 /* Branch-free minimum and maximum (vminpd, vmaxpd: no NaN reaches them). */
@@ -44,6 +47,9 @@ typedef struct {
   const int64_t *pair_kind; const double *pair_fixed;
   const int64_t *cover_start; const double *cover_pos, *cover_radius;
   const uint8_t *slot_turned;
+  const int64_t *slot_inner; const double *slot_inner_size, *pair_contact;
+  const uint8_t *pair_skewer;
+  const int64_t *witness_start; const double *witness_offset, *witness_spacing;
 } Scene;
 
 /* One call's lanes: start[nq][L], change[nq][L], t[L], cap[L], rates[npair][L] in;
@@ -170,6 +176,31 @@ static void place(int W, const Scene *S, const double *restrict xl, const double
   }
 }
 
+/* (lx, ly, lz)[l] = the points (px, py, pz)[l] in slot b's frame (static: the scene's;
+ * moving: each lane's). */
+static inline void in_frame(int W, const Scene *S, int64_t b, const double *restrict px,
+                            const double *restrict py, const double *restrict pz,
+                            const double *restrict wl, const double *restrict rl,
+                            double *restrict lx, double *restrict ly, double *restrict lz) {
+  if (S->slot_static[b]) {
+    const double *o = S->slot_pos + 3 * b, *q = S->slot_rot + 9 * b;
+    for (int l = 0; l < W; l++) {
+      double dx = px[l] - o[0], dy = py[l] - o[1], dz = pz[l] - o[2];
+      lx[l] = q[0] * dx + q[3] * dy + q[6] * dz;
+      ly[l] = q[1] * dx + q[4] * dy + q[7] * dz;
+      lz[l] = q[2] * dx + q[5] * dy + q[8] * dz;
+    }
+    return;
+  }
+  const double *restrict WB = wl + b * 3 * L, *restrict R = rl + b * 9 * L;
+  for (int l = 0; l < W; l++) {
+    double dx = px[l] - WB[l], dy = py[l] - WB[L + l], dz = pz[l] - WB[2 * L + l];
+    lx[l] = R[l] * dx + R[3 * L + l] * dy + R[6 * L + l] * dz;
+    ly[l] = R[L + l] * dx + R[4 * L + l] * dy + R[7 * L + l] * dz;
+    lz[l] = R[2 * L + l] * dx + R[5 * L + l] * dy + R[8 * L + l] * dz;
+  }
+}
+
 /* fine[l] = min over a's cover spheres of (distance of the centre to b's container) less
  * the sphere's radius, in b's frame (static: the scene's; moving: each lane's). */
 static void cover_gaps(int W, const Scene *S, int64_t a, int64_t b, const double *restrict wl,
@@ -179,27 +210,11 @@ static void cover_gaps(int W, const Scene *S, int64_t a, int64_t b, const double
   const double *size = S->slot_size + 3 * b;
   double s0 = size[0], s1 = size[1], s2 = size[2];
   int64_t kind = S->slot_type[b];
-  const double *restrict WB = wl + b * 3 * L, *restrict R = rl + b * 9 * L;
   for (int l = 0; l < W; l++) fine[l] = INFINITY;
   for (int64_t c = S->cover_start[a]; c < S->cover_start[a + 1]; c++) {
     const double *restrict C = cl + c * 3 * L;
     double radius = S->cover_radius[c];
-    if (S->slot_static[b]) {
-      const double *o = S->slot_pos + 3 * b, *q = S->slot_rot + 9 * b;
-      for (int l = 0; l < W; l++) {
-        double dx = C[l] - o[0], dy = C[L + l] - o[1], dz = C[2 * L + l] - o[2];
-        lx[l] = q[0] * dx + q[3] * dy + q[6] * dz;
-        ly[l] = q[1] * dx + q[4] * dy + q[7] * dz;
-        lz[l] = q[2] * dx + q[5] * dy + q[8] * dz;
-      }
-    } else {
-      for (int l = 0; l < W; l++) {
-        double dx = C[l] - WB[l], dy = C[L + l] - WB[L + l], dz = C[2 * L + l] - WB[2 * L + l];
-        lx[l] = R[l] * dx + R[3 * L + l] * dy + R[6 * L + l] * dz;
-        ly[l] = R[L + l] * dx + R[4 * L + l] * dy + R[7 * L + l] * dz;
-        lz[l] = R[2 * L + l] * dx + R[5 * L + l] * dy + R[8 * L + l] * dz;
-      }
-    }
+    in_frame(W, S, b, C, C + L, C + 2 * L, wl, rl, lx, ly, lz);
     switch (kind) {
     case SPHERE:
       for (int l = 0; l < W; l++)
@@ -231,8 +246,75 @@ static void cover_gaps(int W, const Scene *S, int64_t a, int64_t b, const double
   }
 }
 
+/* contact[l] |= the inner shapes of pair k (a moving, with witness points) are closer than
+ * the pair's contact distance, by the points (layout.inner, lanes.py: witness_points):
+ * each point p of a's inner segment (its sphere: the centre) with a's inner radius r is a
+ * ball inside a, so the signed distance of p to b's inner shape less r bounds the pair's
+ * from above (a box's point distance is 0 inside it, above its signed one). A capsule
+ * and a primitive box (pair_skewer) also need what MuJoCo's collider sees: not its axis
+ * through the box with both ends outside. Proven where every point is farther than half
+ * their spacing from the box (the axis then misses it: the point distance changes at
+ * most as fast as the point moves) or an end lies inside the box by SLACK. */
+static void witness(int W, const Scene *S, int64_t k, int64_t a, int64_t b,
+                    const double *restrict ml,
+                    const double *restrict wl, const double *restrict rl,
+                    double *restrict contact) {
+  double px[L], py[L], pz[L], lx[L], ly[L], lz[L], ux[L], uy[L], uz[L], best[L], inside[L];
+  const double *ib = S->slot_inner_size + 3 * b;
+  double b0 = ib[0], b1 = ib[1], b2 = ib[2];
+  int64_t kind = S->slot_inner[b];
+  int skewer = S->pair_skewer[k] != 0;
+  double radius = S->slot_inner_size[3 * a], limit = S->pair_contact[k];
+  double spacing = S->witness_spacing[a];
+  const double *restrict X = wl + a * 3 * L, *restrict M = ml + S->slot_body[a] * 9 * L;
+  const double *q = S->slot_rot + 9 * a;
+  for (int i = 0; i < 3; i++) {  /* a's axis in the world */
+    double *restrict u = i == 0 ? ux : (i == 1 ? uy : uz);
+    for (int l = 0; l < W; l++)
+      u[l] = M[3 * i * L + l] * q[2] + M[(3 * i + 1) * L + l] * q[5] + M[(3 * i + 2) * L + l] * q[8];
+  }
+  for (int l = 0; l < W; l++) best[l] = INFINITY, inside[l] = 0.0;
+  int64_t first = S->witness_start[a], last = S->witness_start[a + 1] - 1;
+  for (int64_t c = first; c <= last; c++) {
+    double z = S->witness_offset[c];
+    for (int l = 0; l < W; l++)
+      px[l] = X[l] + ux[l] * z, py[l] = X[L + l] + uy[l] * z, pz[l] = X[2 * L + l] + uz[l] * z;
+    in_frame(W, S, b, px, py, pz, wl, rl, lx, ly, lz);
+    switch (kind) {
+    case SPHERE:
+      for (int l = 0; l < W; l++)
+        best[l] = MIN(best[l], sqrt(lx[l] * lx[l] + ly[l] * ly[l] + lz[l] * lz[l]) - b0);
+      break;
+    case CAPSULE:
+      for (int l = 0; l < W; l++) {
+        double h = lz[l] - MIN(MAX(lz[l], -b1), b1);
+        best[l] = MIN(best[l], sqrt(lx[l] * lx[l] + ly[l] * ly[l] + h * h) - b0);
+      }
+      break;
+    case BOX: {
+      int end = c == first || c == last;
+      for (int l = 0; l < W; l++) {
+        double ax = fabs(lx[l]), ay = fabs(ly[l]), az = fabs(lz[l]);
+        double ex = MAX(ax - b0, 0.0), ey = MAX(ay - b1, 0.0), ez = MAX(az - b2, 0.0);
+        best[l] = MIN(best[l], sqrt(ex * ex + ey * ey + ez * ez));
+        double in = (ax <= b0 - SLACK) & (ay <= b1 - SLACK) & (az <= b2 - SLACK);
+        inside[l] = end ? MAX(inside[l], in) : inside[l];
+      }
+      break;
+    }
+    default: /* PLANE: the half-space below its z = 0 */
+      for (int l = 0; l < W; l++) best[l] = MIN(best[l], lz[l]);
+    }
+  }
+  for (int l = 0; l < W; l++) {
+    double near = (best[l] - radius + SLACK < limit);
+    double clear = skewer ? (best[l] > 0.5 * spacing + SLACK) : 1.0;
+    contact[l] = MAX(contact[l], MAX(near * clear, skewer ? inside[l] : 0.0));
+  }
+}
+
 void lane_block(const Scene *S, Block *B) {
-  double gap[L], fine[L];
+  double gap[L], fine[L], contact[L];
   double *steps = B->step;
   double *xl = B->work, *ml = xl + S->nbody * 3 * L, *wl = ml + S->nbody * 9 * L;
   double *rl = wl + S->nslot * 3 * L, *cl = rl + S->nslot * 9 * L;
@@ -240,7 +322,7 @@ void lane_block(const Scene *S, Block *B) {
   if (W > L) W = L;
   forward(W, S, B, xl, ml);
   place(W, S, xl, ml, wl, rl, cl);
-  for (int l = 0; l < W; l++) steps[l] = B->cap[l];
+  for (int l = 0; l < W; l++) steps[l] = B->cap[l], contact[l] = 0.0;
   for (int64_t k = 0; k < S->npair; k++) {
     int64_t kind = S->pair_kind[k];
     if (kind == OUT_OF_REACH) continue;
@@ -270,10 +352,20 @@ void lane_block(const Scene *S, Block *B) {
       cover_gaps(W, S, a, b, wl, rl, cl, fine);
     }
     double margin = S->pair_margin[k];
+    int open = 0;
     for (int l = 0; l < W; l++) {
       double g = MAX(gap[l], fine[l] - margin) - SLACK;
       double step = rate[l] > 0.0 ? g / rate[l] : INFINITY;
       steps[l] = MIN(steps[l], g > 0.0 ? step : -1.0);
+      open |= g <= 0.0;
+    }
+    if (open && S->witness_start[a] < S->witness_start[a + 1] && S->slot_inner[b] != NO_INNER
+        && S->pair_contact[k] > -INFINITY) {
+      witness(W, S, k, a, b, ml, wl, rl, contact);
+      int decided = 1;
+      for (int l = 0; l < W; l++) decided &= contact[l] > 0.0;
+      if (decided) break;  /* every lane in contact: the other pairs cannot change that */
     }
   }
+  for (int l = 0; l < W; l++) steps[l] = contact[l] > 0.0 ? CONTACT : steps[l];
 }

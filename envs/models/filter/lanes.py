@@ -1,17 +1,22 @@
-"""Lanes: 16 path samples bounded in one call of a small C kernel (``lanes.c``).
+"""Lanes: 16 samples bounded in one call of a small C kernel (``lanes.c``).
 
 The scalar kernels bound one sample at a time. A path check of two or more paths keeps
 up to 16 of them in flight instead, each with the scalar loop's raked search, started
 from several intervals at once when the call has few paths (``kernels._lane_paths``):
 each round, the next interval of every path in turn fills the lanes, and the kernel's
 ``lane_block`` bounds their middle samples at once, returning per lane a free step (every
-pair farther than its margin within it) or "not proven"; a sample the lanes do not prove
-goes to the scalar kernel, witnesses and MuJoCo exactly as before. So the lanes only ever
-prove samples *free*, and every verdict and first colliding sample stays MuJoCo's.
+pair farther than its margin within it), "in contact" (a witness: inner shapes closer
+than the pair's contact distance, as the scalar witnesses prove it) or "not proven"; a
+sample the lanes do not prove goes to the scalar kernel, witnesses and MuJoCo exactly as
+before. A configuration check of two or more rows fills the lanes with rows
+(``kernels._lane_configurations``). The lanes prove only what the scalar kernels would,
+so every verdict and first colliding sample stays MuJoCo's.
 
 The lanes' bounds hold each moving geom's container in spheres on its axis
 (:func:`covers`): a cover sphere's centre measured to the partner's container, less its
-radius, bounds the pair's distance from below. They are looser than the scalar kernel's
+radius, bounds the pair's distance from below; points on the moving geom's inner segment
+(:func:`witness_points`), measured to the partner's inner shape, bound it from above.
+They are looser than the scalar kernel's
 (which measure the containers themselves and use each sample's local speeds), and much
 cheaper: structure-of-arrays, every inner loop one run of SIMD instructions over the
 lanes (``docs/models.md`` has the measurements, and why C rather than numba).
@@ -86,6 +91,29 @@ def covers(scene: CompiledScene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             np.array(radii, dtype=np.float64))
 
 
+def witness_points(scene: CompiledScene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Points on each moving slot's inner segment, from which the lanes prove contacts:
+    (start (S+1,), offsets along the slot's axis (W,), spacing per slot (S,)); slot s owns
+    ``offsets[start[s]:start[s + 1]]``, none where its inner shape is not a sphere or a
+    capsule (a box, none) or the slot is static.
+
+    A capsule inner shape of radius r and half-length h: n = ⌈2h/r⌉ + 1 points from −h to
+    h (both ends, which the skewer rule reads), evenly spaced ≤ r apart; a sphere its
+    centre. Balls of radius r about them lie inside the inner shape."""
+    start, spacing = [0], np.zeros(len(scene.slot_type))
+    offsets: list[float] = []
+    for s in range(len(scene.slot_type)):
+        kind, size = int(scene.slot_inner[0, s]), scene.slot_inner_size[0, s]
+        if not scene.slot_static[s] and kind in (SPHERE, CAPSULE):
+            r, h = float(size[0]), float(size[1]) if kind == CAPSULE else 0.0
+            n = math.ceil(2.0 * h / r) + 1 if h > 0.0 else 1
+            offsets += np.linspace(-h, h, n).tolist() if n > 1 else [0.0]
+            spacing[s] = 2.0 * h / (n - 1) if n > 1 else 0.0
+        start.append(len(offsets))
+    return (np.array(start, dtype=np.int64), np.array(offsets, dtype=np.float64),
+            spacing)
+
+
 def _processor() -> str:
     """What ``-march=native`` depends on: the machine and its CPU flags."""
     flags = ""
@@ -131,7 +159,9 @@ def library() -> ctypes.CDLL | None:
 _POINTERS = ("body_parent body_pos body_rot body_jntadr body_jntnum body_flags jnt_type "
              "jnt_qposadr jnt_pos jnt_axis qpos0 body_xpos body_xmat slot_body slot_static "
              "slot_pos slot_rot slot_type slot_size pair_a pair_b pair_margin pair_reach "
-             "pair_kind pair_fixed cover_start cover_pos cover_radius slot_turned").split()
+             "pair_kind pair_fixed cover_start cover_pos cover_radius slot_turned slot_inner "
+             "slot_inner_size pair_contact pair_skewer witness_start witness_offset "
+             "witness_spacing").split()
 
 
 class _Scene(ctypes.Structure):
@@ -152,6 +182,7 @@ class LaneScene:
         self.address = self.function = 0
         lib = library()
         self.covers = covers(scene)
+        self.witnesses = witness_points(scene)
         #: Doubles of a call's work array.
         self.work_doubles = work_size(scene, len(self.covers[2]))
         if lib is None or not usable(scene, self.covers[0]):
@@ -160,8 +191,11 @@ class LaneScene:
         turned[scene.pair_b[~scene.slot_static[scene.pair_b]]] = 1
         fields = {name: getattr(scene, name) for name in _POINTERS if hasattr(scene, name)}
         fields["slot_static"] = scene.slot_static.astype(np.uint8)
+        fields["pair_skewer"] = scene.pair_skewer.astype(np.uint8)
         fields.update(cover_start=self.covers[0], cover_pos=self.covers[1],
                       cover_radius=self.covers[2], slot_turned=turned)
+        fields.update(zip(("witness_start", "witness_offset", "witness_spacing"),
+                          self.witnesses, strict=True))
         struct = _Scene(nbody=len(scene.body_parent), nslot=len(scene.slot_type),
                         npair=len(scene.pair_a))
         for name in _POINTERS:
@@ -183,7 +217,8 @@ class LaneScene:
               rates: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One call of the kernel from Python (tests, benchmarks): ``start`` and ``change``
         (LANES, nq) full qpos rows, ``t`` and ``cap`` (LANES,), ``rates`` (LANES, pairs).
-        Returns the steps (LANES,) and every body's frame per lane: positions
+        Returns the steps (LANES,: a free step, −1 not proven free, −2 proven in contact)
+        and every body's frame per lane: positions
         (nbody, 3, LANES) and rotations (nbody, 3, 3, LANES)."""
         if not self.address:
             raise ValueError("this filter has no lanes (LaneScene.address is 0)")
@@ -208,7 +243,7 @@ class LaneScene:
 
 #: The struct's fields that are per-scene arrays (a leading scene axis of length 1).
 _ROW = frozenset({"slot_pos", "slot_rot", "slot_size", "pair_fixed", "pair_reach",
-                  "pair_kind"})
+                  "pair_kind", "slot_inner", "slot_inner_size"})
 
 
 def usable(scene: CompiledScene, cover_start: np.ndarray) -> bool:

@@ -11,7 +11,11 @@ import pytest
 from ikbranch_gym.envs.kinematics import make_arm
 from ikbranch_gym.envs.models import CollisionChecker, build_model
 from ikbranch_gym.envs.models.filter import COUNTERS
-from ikbranch_gym.envs.models.filter.kernels import LANE_FUNCTION
+from ikbranch_gym.envs.models.filter.kernels import (
+    BY_WITNESS,
+    LANE_FUNCTION,
+    bound_configurations,
+)
 from ikbranch_gym.envs.models.filter.lanes import LANES, library
 from ikbranch_gym.envs.models.filter.layout import CYLINDER, SPHERE
 
@@ -143,6 +147,94 @@ def test_path_checks_answer_the_same_with_the_lanes_as_without(arm_name):
     before = counters[lanes]
     checker.check_path(q0[0], q1[0])  # one path: the scalar kernel alone
     assert counters[lanes] == before
+
+
+@pytest.mark.parametrize("arm_name", ARMS)
+def test_configuration_checks_answer_the_same_with_the_lanes_as_without(arm_name):
+    checker = _checker(arm_name)
+    arm, exact = make_arm(arm_name), checker._filter._exact
+    rng = np.random.default_rng(7)
+    q = rng.uniform(arm.joint_limits[:, 0], arm.joint_limits[:, 1], (300, arm.dof))
+    lanes, counters = COUNTERS.index("lane samples"), checker._filter.counters
+    function = int(exact[0, LANE_FUNCTION])
+    answers = []
+    for on in (function, 0):
+        exact[0, LANE_FUNCTION] = on
+        before = counters[lanes]
+        answer = [checker.collides(q), checker.n_contacts(q)]
+        for need in (1, 7, 40):  # rows in order until `need` are free; the rest −1
+            out, how = np.empty(len(q), dtype=np.int64), np.empty(len(q), dtype=np.int8)
+            bound_configurations(checker._filter._bound, np.zeros(1, dtype=np.int64), q, need,
+                                 True, out, how)
+            answer.append(out)
+        answers.append(answer)
+        assert (counters[lanes] > before) == bool(on)
+    exact[0, LANE_FUNCTION] = function
+    for with_lanes, without in zip(*answers, strict=True):
+        np.testing.assert_array_equal(with_lanes, without)
+    assert np.sum(answers[0][-1] == -1) > 0
+
+
+@pytest.mark.parametrize("arm_name", ARMS)
+def test_a_contact_the_lanes_prove_is_one_the_scalar_witnesses_prove(arm_name):
+    # Lanes at one configuration each (no step asked): a lane proven in contact (−2) is in
+    # contact by MuJoCo, and the scalar kernel, lanes off, proves it by a witness too.
+    checker = _checker(arm_name)
+    lanes, exact = checker._filter.lanes, checker._filter._exact
+    arm, model = make_arm(arm_name), checker.model
+    rng = np.random.default_rng(6)
+    q = rng.uniform(arm.joint_limits[:, 0], arm.joint_limits[:, 1], (60 * LANES, arm.dof))
+    steps = np.empty(len(q))
+    start = np.tile(model.qpos0, (LANES, 1))
+    npair = len(checker._filter.scene.pair_a)
+    for block in range(0, len(q), LANES):
+        start[:, : arm.dof] = q[block : block + LANES]
+        steps[block : block + LANES] = lanes.bound(start, np.zeros_like(start), np.zeros(LANES),
+                                                   np.zeros(LANES), np.zeros((LANES, npair)))[0]
+    function = int(exact[0, LANE_FUNCTION])
+    exact[0, LANE_FUNCTION] = 0
+    _, how = checker._filter.collide_how(q)
+    exact[0, LANE_FUNCTION] = function
+    colliding = _checker(arm_name, backend="loop").collides(q)
+    proven = steps == -2.0
+    assert np.all(colliding[proven]) and np.all(how[proven] == BY_WITNESS)
+    # Most contacts are proven in the lanes (the rest: skewers, cylinder rims, the
+    # points' scallops go to the scalar kernel).
+    assert proven.sum() > 0.8 * colliding.sum() > 0
+
+
+def _rod_and_wall(wall_x: float) -> CollisionChecker:
+    """A capsule rod turning about a vertical hinge through a thin primitive box wall."""
+    model = mujoco.MjModel.from_xml_string(f"""<mujoco><worldbody>
+        <geom name="wall" type="box" size="0.02 0.3 0.3" pos="{wall_x} 0 0.5" margin="0.005"/>
+        <body name="link" pos="0 0 0.5"><joint name="j" type="hinge" axis="0 0 1"/>
+        <geom name="rod" type="capsule" fromto="0.2 0 0 1.0 0 0" size="0.02"
+              margin="0.005"/></body></worldbody></mujoco>""")
+    return CollisionChecker(model, dof=1, backend="compiled")
+
+
+@pytest.mark.parametrize("wall_x", [0.6, 0.99])  # the rod through the wall; its end in it
+def test_the_lanes_never_prove_a_skewering_rod_in_contact_where_mujoco_finds_none(wall_x):
+    # MuJoCo's capsule–box collider misses a capsule whose axis passes through a box with
+    # both ends outside: the lanes prove a capsule–box contact only where the axis misses
+    # the box (every point farther than half their spacing) or an end is inside it.
+    checker = _rod_and_wall(wall_x)
+    model, data = checker.model, mujoco.MjData(checker.model)
+    angles = np.linspace(-0.7, 0.7, 40 * LANES)
+    steps = np.concatenate([checker._filter.lanes.bound(
+        block[:, None], np.zeros((LANES, 1)), np.zeros(LANES), np.zeros(LANES),
+        np.zeros((LANES, 1)))[0] for block in angles.reshape(-1, LANES)])
+    contacts = np.empty(len(angles), dtype=int)
+    for i, angle in enumerate(angles):
+        data.qpos[0] = angle
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_collision(model, data)
+        contacts[i] = data.ncon
+    proven = steps == -2.0
+    assert proven.sum() > 20 and np.all(contacts[proven] > 0)
+    if wall_x == 0.6:  # the rod crosses the wall: MuJoCo misses some of those overlaps
+        crossing = np.abs(np.tan(angles)) * 0.6 < 0.3 - 0.02
+        assert np.sum(crossing & (contacts == 0)) > 20
 
 
 def test_geoms_the_covers_cannot_hold_leave_the_filter_without_lanes():
