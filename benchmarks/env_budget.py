@@ -12,8 +12,9 @@ included), after a warm-up of ``--warmup`` seconds, with each stage timed per ep
   (``envs/resets.py``);
 - ``reset, rest``: the rest of ``reset`` (observation templates, the first observation);
 - ``steps``: all ``step`` calls of the episode (their path checks, prices, observations);
-- per episode, who decided the samples the filter saw: the lanes (samples they bounded;
-  those they could not prove free go on to the scalar kernel and are counted there too),
+- per episode, who decided the samples the filter saw: the lanes (samples they bounded,
+  and of them those they proved in contact; those they proved neither way go on to the
+  scalar kernel and are counted there too),
   the scalar kernel's bounds (proved free), its witnesses (inner shapes that proved a
   contact) and MuJoCo (the rest), and how many of MuJoCo's checks found no contact
   (samples free that the bounds could not prove free).
@@ -81,6 +82,7 @@ def budget(env_id: str, seconds: float, warmup: float) -> dict:
     row["proved free"] = count["bounded"] - count["mujoco"] - count["witnessed"]
     row["witnessed"], row["mujoco"] = count["witnessed"], count["mujoco"]
     row["free"], row["lanes"] = count["mujoco found free"], count["lane samples"]
+    row["lane contacts"] = count["lane contacts"]
     env.close()
     return row
 
@@ -97,14 +99,15 @@ def main() -> None:
     print(f"{os.cpu_count()} CPUs; {args.seconds:g} s per id after {args.warmup:g} s of "
           "warm-up; ms per episode unless stated\n")
     print("| id | steps/s with resets | steps/episode | episode | scene | task | candidates "
-          "| reset, rest | steps | lane samples | scalar samples proved free | witnessed "
-          "| MuJoCo checks | of them free |")
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+          "| reset, rest | steps | lane samples | of them in contact "
+          "| scalar samples proved free | witnessed | MuJoCo checks | of them free |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for env_id in ids:
         r = budget(env_id, args.seconds, args.warmup)
         print(f"| {env_id} | {r['step/s']:,.0f} | {r['steps/episode']:.1f} | {r['episode']:.2f} "
               f"| {r['scene']:.2f} | {r['task']:.2f} | {r['candidates']:.2f} | {r['rest']:.2f} "
-              f"| {r['steps']:.2f} | {r['lanes']:,.0f} | {r['proved free']:,.0f} "
+              f"| {r['steps']:.2f} | {r['lanes']:,.0f} | {r['lane contacts']:,.1f} "
+              f"| {r['proved free']:,.0f} "
               f"| {r['witnessed']:,.1f} | {r['mujoco']:,.1f} | {r['free']:,.1f} |", flush=True)
 
 
