@@ -160,7 +160,7 @@ def test_the_wheel_installs_into_a_fresh_venv_with_core_extras_then_trains(tmp_p
     result = _python("""
         import envs, sys
         import gymnasium as gym
-        env = gym.make("ikbranch_gym:IKBranch/Cartesian-v2")
+        env = gym.make("ikbranch_gym:IKBranch/ToolTransfer-v1")  # the id trained below
         obs, info = env.reset(seed=0)
         for _ in range(4):
             obs, reward, terminated, truncated, info = env.step(
