@@ -392,11 +392,12 @@ def check_configurations(tree, geometry, motion, exact, scenes, rows, need, verd
             out[i] = how[i] = -1
             continue
         e = scenes[0] if len(scenes) == 1 else scenes[i]
+        scene = _scene(geometry, e)
         if e != entered:
-            _enter(_scene(geometry, e), work[2], work[3])
+            _enter(scene, work[2], work[3])
             entered = e
-        out[i], how[i] = _configuration(tree, _scene(geometry, e), motion, exact[e], rows[i],
-                                        verdict, qpos, work, every_pair, counters)
+        out[i], how[i] = _configuration(tree, scene, motion, exact[e], rows[i], verdict, qpos,
+                                        work, every_pair, counters)
         if out[i] == 0:
             free += 1
 
@@ -535,15 +536,7 @@ def check_paths(tree, geometry, motion, exact, scenes, start_rows, end_rows, ste
             settle = _settle(settle, step, active, rates)
             reach = 0
             if step < 0.0:
-                if step == CONTACT:
-                    counters[4] += 1
-                    hit = True
-                else:
-                    counters[1] += 1
-                    hit = _exact_contacts(qpos, exact[e]) > 0
-                    if not hit:
-                        counters[3] += 1  # the bounds could not prove a free sample free
-                if hit:
+                if _sample_collides(step, qpos, exact[e], counters):
                     found = mid
                     if not first:
                         break

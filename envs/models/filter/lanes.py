@@ -16,8 +16,8 @@ The lanes' bounds hold each moving geom's container in spheres on its axis
 (:func:`covers`): a cover sphere's centre measured to the partner's container, less its
 radius, bounds the pair's distance from below; points on the moving geom's inner segment
 (:func:`witness_points`), measured to the partner's inner shape, bound it from above.
-They are looser than the scalar kernel's
-(which measure the containers themselves and use each sample's local speeds), and much
+They are looser than the scalar kernel's (which measure the containers themselves and
+use each sample's local speeds), and much
 cheaper: structure-of-arrays, every inner loop one run of SIMD instructions over the
 lanes (``docs/models.md`` has the measurements, and why C rather than numba).
 
@@ -217,9 +217,9 @@ class LaneScene:
               rates: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One call of the kernel from Python (tests, benchmarks): ``start`` and ``change``
         (LANES, nq) full qpos rows, ``t`` and ``cap`` (LANES,), ``rates`` (LANES, pairs).
-        Returns the steps (LANES,: a free step, −1 not proven free, −2 proven in contact)
-        and every body's frame per lane: positions
-        (nbody, 3, LANES) and rotations (nbody, 3, 3, LANES)."""
+        Returns the steps (LANES,): per lane a free step, −1 (not proven free) or −2
+        (proven in contact); and every body's frame per lane: positions (nbody, 3, LANES)
+        and rotations (nbody, 3, 3, LANES)."""
         if not self.address:
             raise ValueError("this filter has no lanes (LaneScene.address is 0)")
         nbody, npair, nq = self._sizes
