@@ -104,11 +104,12 @@ class EpisodeBatch:
         self.checked = np.ones((size, k), dtype=bool)
         self._configuration = np.ascontiguousarray(arm.branch_closed_form, dtype=np.int64)
         self._revolute = np.ascontiguousarray(arm.revolute_mask)
-        #: Per row: the priced moves of its current state into its next waypoint, as
-        #: ``_price`` writes them (value and flag blocks of (row, 1, K)), and its
-        #: observation.
-        self.values = np.zeros((len(_VALUE_NAMES), size, 1, k))
-        self.flags = np.zeros((3, size, 1, k), dtype=bool)
+        #: Per row: the priced moves of its current state into its next waypoint (the
+        #: value and flag blocks ``_price`` writes, row first so that a row's view is
+        #: contiguous as the batch's arrays are: one compiled version of the stages
+        #: serves both), and its observation.
+        self.values = np.zeros((size, len(_VALUE_NAMES), k))
+        self.flags = np.zeros((size, 3, k), dtype=bool)
         self.observation = np.zeros((size, observations.size), dtype=np.float32)
         #: Per row: its scene in ``checks`` and the token of the scene standing there now
         #: (the path memo's key: ``set_scene``).
@@ -142,7 +143,7 @@ class EpisodeBatch:
     #: The per-row arrays (a view of one row shares them).
     _ROW_ARRAYS = ("q", "index", "collided", "invalid", "candidates", "valid", "endpoint",
                    "start", "free_start", "lengths", "templates", "observation", "tokens",
-                   "inside", "limits", "branch", "checked")
+                   "inside", "limits", "branch", "checked", "values", "flags")
 
     def view(self, row: int, checks: CompiledFilter) -> EpisodeBatch:
         """A batch of one whose arrays are row ``row`` of this batch's: what either does to
@@ -153,7 +154,6 @@ class EpisodeBatch:
         one.observations, one.checks = self.observations, checks
         for name in self._ROW_ARRAYS:
             setattr(one, name, getattr(self, name)[row : row + 1])
-        one.values, one.flags = self.values[:, row : row + 1], self.flags[:, row : row + 1]
         one.scenes, one._memo = np.zeros(1, dtype=np.int64), self._memo
         one._configuration, one._revolute = self._configuration, self._revolute
         one._bind()

@@ -324,7 +324,7 @@ def _travel_order(ep, live, collision):
             allowed[size[line]] = b
             size[line] += 1
         picked = allowed[: size[line]]
-        ranked = np.argsort(ep.values[1, r, 0][picked], kind="mergesort")
+        ranked = np.argsort(ep.values[r, 1][picked], kind="mergesort")
         order[line, : size[line]] = picked[ranked]
     return order, size
 
@@ -401,7 +401,7 @@ def _price_rows(ep, live, collision):
         verdicts[line, 0] = collision[line]
         for b in range(k):
             blocked[line, 0, b] = _blocked(ep, r, w, b)
-    values = np.empty((ep.values.shape[0], count, 1, k))
+    values = np.empty((ep.values.shape[1], count, 1, k))
     flags = np.empty((3, count, 1, k), dtype=np.bool_)
     numbers = ep.numbers
     _price(origins, candidates, valid, waypoints, verdicts, blocked, free_start, lengths,
@@ -411,8 +411,8 @@ def _price_rows(ep, live, collision):
            flags)
     for line in range(count):
         r = live[line]
-        ep.values[:, r] = values[:, line]
-        ep.flags[:, r] = flags[:, line]
+        ep.values[r] = values[:, line, 0]
+        ep.flags[r] = flags[:, line, 0]
 
 
 @njit
@@ -856,7 +856,7 @@ def _observe(ep, rows, live, collision, onward, ahead):
         r = live[line]
         w = ep.index[r]
         for b in range(ep.valid.shape[2]):
-            travel = ep.values[1, r, 0, b] / scale
+            travel = ep.values[r, 1, b] / scale
             obs[r, layout[TRAVEL0] + b] = min(travel, 1.0) if _allowed(ep, r, w, b) else 1.0
             obs[r, layout[PATH0] + b] = 1.0 if collision[line, b] else 0.0
             if layout[ONWARD0] >= 0:
@@ -879,9 +879,9 @@ def advance(ep, bound, rows, actions, values, flags, success):
         r, a = rows[i], actions[i]
         w = ep.index[r]
         for v in range(values.shape[0]):
-            values[v, i] = ep.values[v, r, 0, a]
+            values[v, i] = ep.values[r, v, a]
         for f in range(3):
-            flags[f, i] = ep.flags[f, r, 0, a]
+            flags[f, i] = ep.flags[r, f, a]
         terminated, hit, invalid = flags[0, i], flags[1, i], flags[2, i]
         if not invalid:
             ep.q[r] = ep.candidates[r, w, a]

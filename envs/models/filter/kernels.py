@@ -122,7 +122,7 @@ def _sample_step(tree, geometry, qpos, xpos, xmat, wpos, wrot, rates, coarse, ca
     return best
 
 
-@njit(inline="always")
+@njit
 def _witnessed(coarse, survivors, pair_a, pair_b, pair_contact, pair_skewer, slot_inner,
                slot_inner_size, slot_type, slot_size, wpos, wrot):
     """``CONTACT`` if the inner shapes of a pair whose bounding spheres may be within its
@@ -424,6 +424,25 @@ def _configuration(tree, scene, motion, exact, row, verdict, qpos, work, every_p
     return contacts, BY_MUJOCO
 
 
+# The scalar kernel is inlined where it is the loop (``check_configurations``,
+# ``check_paths``) and called where it only decides the few samples the lanes left:
+# inlined there as well it costs compile time, not run time (docs/models.md).
+@njit
+def _configuration_called(tree, scene, motion, exact, row, verdict, qpos, work, every_pair,
+                          counters):
+    """:func:`_configuration`, compiled once as a function of its own."""
+    return _configuration(tree, scene, motion, exact, row, verdict, qpos, work, every_pair,
+                          counters)
+
+
+@njit
+def _sample_step_called(tree, geometry, qpos, xpos, xmat, wpos, wrot, rates, coarse, cap,
+                        counters, motion, local, witness, active):
+    """:func:`_sample_step`, compiled once as a function of its own."""
+    return _sample_step(tree, geometry, qpos, xpos, xmat, wpos, wrot, rates, coarse, cap,
+                        counters, motion, local, witness, active)
+
+
 @njit
 def _lane_configurations(tree, geometry, motion, exact, scenes, rows, need, verdict, out,
                          how, counters):
@@ -465,9 +484,9 @@ def _lane_configurations(tree, geometry, motion, exact, scenes, rows, need, verd
                 if e != entered:
                     _enter(_scene(geometry, e), work[2], work[3])
                     entered = e
-                out[r], how[r] = _configuration(tree, _scene(geometry, e), motion, exact[e],
-                                                rows[r], verdict, qpos, work, every_pair,
-                                                counters)
+                out[r], how[r] = _configuration_called(tree, _scene(geometry, e), motion,
+                                                       exact[e], rows[r], verdict, qpos, work,
+                                                       every_pair, counters)
             if out[r] == 0:
                 free += 1
         i += width
@@ -617,9 +636,9 @@ def _lane_paths(tree, geometry, motion, exact, scenes, start_rows, end_rows, ste
                 np.abs(delta, dq)
                 _path_sample(qpos, start, delta, i / n, nq)  # (no change past the dof)
                 counters[0] += 1
-                step = _sample_step(kinematic, _scene(geometry, e), qpos, xpos, xmat, wpos,
-                                    wrot, rates, coarse, max(i - a, b - i) / n, counters,
-                                    motion, local, True, every_pair)
+                step = _sample_step_called(kinematic, _scene(geometry, e), qpos, xpos, xmat,
+                                           wpos, wrot, rates, coarse, max(i - a, b - i) / n,
+                                           counters, motion, local, True, every_pair)
                 if step < 0.0 and not _sample_collides(step, qpos, exact[e], counters):
                     step = 0.0  # free as MuJoCo found it
             if step < 0.0:
@@ -635,7 +654,7 @@ def _lane_paths(tree, geometry, motion, exact, scenes, start_rows, end_rows, ste
             tail[p] = _push_interval(queue_lo[p], queue_hi[p], tail[p], i + reach + 1, b)
 
 
-@njit(inline="always")
+@njit
 def _sample_collides(step, qpos, exact, counters):
     """A sample the bounds did not prove free (``step`` < 0): in contact by a witness
     (``CONTACT``), else as MuJoCo finds it (counted as :func:`check_paths` counts)."""
@@ -649,7 +668,7 @@ def _sample_collides(step, qpos, exact, counters):
     return False
 
 
-@njit(inline="always")
+@njit
 def _take_paths(places, scenes, start_rows, end_rows, steps, qpos0, geometry, scalar, taken,
                 current, parts, out):
     """Write out the paths whose queues are empty, and give their places to the next paths
@@ -684,7 +703,7 @@ def _take_paths(places, scenes, start_rows, end_rows, steps, qpos0, geometry, sc
     return taken, current
 
 
-@njit(inline="always")
+@njit
 def _gather(places, lanes):
     """A round's intervals: every path's next one in turn until the lanes are full (into
     ``lanes``' place, low, high and middle rows). Returns how many."""
@@ -706,7 +725,7 @@ def _gather(places, lanes):
     return width
 
 
-@njit(inline="always")
+@njit
 def _bound_lanes(places, lanes, block_arrays, block, width, exact, counters):
     """Load the round's samples into the lane kernel's Block (a lane's start, change and
     rates only when its path changed) and call it on the first ``width`` lanes; with
@@ -732,7 +751,7 @@ def _bound_lanes(places, lanes, block_arrays, block, width, exact, counters):
     _call_lanes(exact, block, width, counters)
 
 
-@njit(inline="always")
+@njit
 def _lane_block(qpos0, npair, work):
     """The lane kernel's ``Block`` (lanes.c) as an array of addresses, and the arrays they
     point at: start (qpos0 in every lane), change, t, cap, rates (zero), steps, work."""
@@ -749,7 +768,7 @@ def _lane_block(qpos0, npair, work):
     return arrays, block
 
 
-@njit(inline="always")
+@njit
 def _call_lanes(exact, block, width, counters):
     """Bound the first ``width`` lanes of ``block`` in the scene of ``exact`` (its row)."""
     block[7] = width
