@@ -48,3 +48,28 @@ def test_kernels_are_cached_in_that_directory():
     location = Path(kernels.check_paths._cache._cache_path).resolve()
     assert Path(jit.cache_directory()).resolve() in location.parents
     assert isinstance(kernels.check_paths, numba.core.registry.CPUDispatcher)
+
+
+def test_single_and_vector_envs_and_frozen_rows_share_one_compiled_version():
+    # Each extra argument type is every kernel compiled again (minutes on a fresh
+    # install): a vector env's sub-env views must type as the batch does, and rows the
+    # filter is handed read-only (an arm's frozen home) must reach the kernels writable.
+    import gymnasium as gym
+
+    from ikbranch_gym.envs import stepping
+    from ikbranch_gym.envs.models.filter import kernels
+
+    env_id = "IKBranch/Cartesian-v3"
+    single = gym.make(env_id)
+    single.reset(seed=0)
+    vector = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point")
+    vector.reset(seed=0)
+    home = single.unwrapped.arm.home
+    assert not home.flags.writeable
+    single.unwrapped.checker.collides(home)
+    single.unwrapped.compiled_filter.collide(home[None])
+    assert len(stepping.make_episodes.signatures) == 1
+    assert not any(signature[2].mutable is False
+                   for signature in kernels.bound_configurations.signatures)
+    single.close()
+    vector.close()
