@@ -236,6 +236,44 @@ def _turned_travel_summaries(valid: np.ndarray, tables: _TurnTables, closed: np.
                 arriving[i + 1, b] = min(least / scale, 1.0)
 
 
+@njit
+def _compact_templates(candidates: np.ndarray, valid: np.ndarray, endpoint: np.ndarray,
+                       centre: np.ndarray, half_range: np.ndarray, leaving: np.ndarray,
+                       arriving: np.ndarray, slots: np.ndarray, progress: int,
+                       out: np.ndarray) -> None:
+    """The compact layout's templates (``ObservationBuilder.templates``) into ``out`` (N + 1,
+    size) float32: row i has ``progress`` i / N and per slot h whose waypoint w = i + h
+    lies in the task (``slots[h]``: where its present, travel_out and travel_in start,
+    −1 for none) present 1, the candidates normalised (0 where invalid), valid, endpoint
+    collision, ``leaving[w]`` and ``arriving[w]``; 0 everywhere else. Each value is
+    computed in float64 and clipped to [−1, 1] (the 1e-9 slack with which a branch may
+    lie on a joint limit) before it is stored, as NumPy's ``clip`` and ``astype`` would."""
+    n, k, dof = candidates.shape
+    out[:] = 0.0
+    for i in range(n + 1):
+        out[i, progress] = i / n
+    for h in range(len(slots)):
+        present, travel_out, travel_in = slots[h]
+        for i in range(n - h):
+            w = i + h
+            row = out[i]
+            row[present] = 1.0
+            at = present + 1
+            for b in range(k):
+                for j in range(dof):
+                    value = 0.0
+                    if valid[w, b]:
+                        value = (candidates[w, b, j] - centre[j]) / half_range[j]
+                    row[at + b * dof + j] = min(max(value, -1.0), 1.0)
+            at += k * dof
+            for b in range(k):
+                row[at + b] = 1.0 if valid[w, b] else 0.0
+                row[at + k + b] = 1.0 if endpoint[w, b] else 0.0
+                row[travel_out + b] = leaving[w, b]
+                if travel_in >= 0:
+                    row[travel_in + b] = arriving[w, b]
+
+
 class ObservationBuilder:
     """The layout and assembly of one env's observations (arm, lookahead, travel scale,
     ``kind``: one of ``OBSERVATIONS``)."""
@@ -268,6 +306,13 @@ class ObservationBuilder:
         #: name -> (start, stop) of each slice of the observation vector.
         self.layout = self._layout()
         self.size = max(stop for _, stop in self.layout.values())
+        #: Per slot h (compact): where its present, travel_out and travel_in (−1: slot 0
+        #: has none) start.
+        self._slot_starts = np.array(
+            [[self.layout[f"slot{h}/present"][0], self.layout[f"slot{h}/travel_out"][0],
+              self.layout.get(f"slot{h}/travel_in", (-1, -1))[0]]
+             for h in range(self.lookahead + 1)] if kind == "compact" else [[0, 0, 0]],
+            dtype=np.int64)
         #: (candidates, valid, endpoint_collision) bytes of a task -> its templates
         #: (read-only), cleared when it would grow past ``TEMPLATE_CACHE_BYTES``; only
         #: tasks seen before (``_sighted``: hashes of keys) are kept, so that tasks which
@@ -329,6 +374,13 @@ class ObservationBuilder:
 
     def _assemble(self, ladder: TaskMoves) -> np.ndarray:
         """The templates of :meth:`templates`, (N + 1, size) float32."""
+        if self.kind == "compact":
+            templates = np.empty((ladder.n_waypoints + 1, self.size), dtype=np.float32)
+            leaving, arriving = self._travel_summaries(ladder)
+            _compact_templates(ladder.candidates, ladder.valid, ladder.endpoint_collision,
+                               self._centre, self._half_range, leaving, arriving,
+                               self._slot_starts, self.layout["progress"][0], templates)
+            return templates
         n, k, dof = ladder.n_waypoints, self.arm.n_branches, self.arm.dof
         valid = ladder.valid
         # Per waypoint: present, candidates (invalid ones at the centre: 0), valid, endpoint.
@@ -337,13 +389,9 @@ class ObservationBuilder:
             [np.ones((n, 1)), self.normalise(candidates).reshape(n, k * dof), valid,
              ladder.endpoint_collision], axis=1,
         )
-        width = common.shape[1]
         templates = np.zeros((n + 1, self.size))
         templates[:, slice(*self.layout["progress"])] = np.arange(n + 1)[:, None] / n
-        if self.kind == "compact":
-            self._prepare_compact(ladder, common, templates)
-        else:
-            self._prepare_ladder(ladder, common, templates, width)
+        self._prepare_ladder(ladder, common, templates, common.shape[1])
         # Values sit inside [−1, 1] by construction; the clip only absorbs the 1e-9 slack
         # with which a branch may lie on a joint limit.
         return np.clip(templates, -1.0, 1.0).astype(np.float32)
@@ -367,11 +415,11 @@ class ObservationBuilder:
             if h:
                 templates[:rows, start + width : start + width + k * k] = travel[h - 1 :]
 
-    def _prepare_compact(self, ladder: TaskMoves, common: np.ndarray,
-                         templates: np.ndarray) -> None:
+    def _travel_summaries(self, ladder: TaskMoves) -> tuple[np.ndarray, np.ndarray]:
+        """The compact layout's travel summaries (N, K) of ``ladder``: ``leaving[i]`` from
+        waypoint i onwards, to the free branches after; ``arriving[i]`` into waypoint i,
+        from the free branches before."""
         n, k = ladder.n_waypoints, self.arm.n_branches
-        # leaving[i] (K): from waypoint i onwards, to the free branches after; arriving[i]
-        # (K): into waypoint i, from the free branches before.
         leaving, arriving = np.empty((n, k)), np.empty((n, k))
         weights, scale = ladder.pricer.cost.weights, float(self.travel_scale)
         tables = None
@@ -387,10 +435,4 @@ class ObservationBuilder:
             _travel_summaries(ladder.candidates, ladder.valid,
                               ladder.valid & ~ladder.endpoint_collision, weights, scale,
                               leaving, arriving)
-        for h in range(min(self.lookahead, n - 1) + 1):
-            rows = n - h  # indices 0 … n − h − 1 see waypoint index + h inside the task
-            start = self.layout[f"slot{h}/present"][0]
-            templates[:rows, start : start + common.shape[1]] = common[h:]
-            templates[:rows, slice(*self.layout[f"slot{h}/travel_out"])] = leaving[h:]
-            if h:
-                templates[:rows, slice(*self.layout[f"slot{h}/travel_in"])] = arriving[h:]
+        return leaving, arriving

@@ -359,3 +359,42 @@ def test_an_arm_with_hundreds_of_branches_sums_its_factors():
     assert gym.make("IKBranch/UR5e-v0").unwrapped._observations._turns is not None
     assert gym.make("IKBranch/KukaKR6-v0").unwrapped.arm.n_branches < FACTORED_BRANCHES
     assert gym.make("IKBranch/KukaKR6-v0").unwrapped._observations._turns is None
+
+
+def _numpy_compact_templates(builder, ladder, leaving, arriving):
+    """The compact templates assembled slice by slice with NumPy, as the module docstring
+    lays them out: the reference of the compiled assembly."""
+    n, k, dof = ladder.n_waypoints, builder.arm.n_branches, builder.arm.dof
+    valid = ladder.valid
+    candidates = np.where(valid[..., None], ladder.candidates, builder._centre)
+    common = np.concatenate([np.ones((n, 1)), builder.normalise(candidates).reshape(n, k * dof),
+                             valid, ladder.endpoint_collision], axis=1)
+    templates = np.zeros((n + 1, builder.size))
+    templates[:, slice(*builder.layout["progress"])] = np.arange(n + 1)[:, None] / n
+    for h in range(min(builder.lookahead, n - 1) + 1):
+        start = builder.layout[f"slot{h}/present"][0]
+        templates[: n - h, start : start + common.shape[1]] = common[h:]
+        templates[: n - h, slice(*builder.layout[f"slot{h}/travel_out"])] = leaving[h:]
+        if h:
+            templates[: n - h, slice(*builder.layout[f"slot{h}/travel_in"])] = arriving[h:]
+    return np.clip(templates, -1.0, 1.0).astype(np.float32)
+
+
+@pytest.mark.parametrize("env_id", ["IKBranch/UR5e-v3", "IKBranch/KukaKR6-v2",
+                                    "IKBranch/Anthropomorphic-v4", "IKBranch/ToolTransfer-v2",
+                                    "IKBranch/DualRRPRPP-v2"])
+@pytest.mark.parametrize("lookahead", [0, 2, 5])
+def test_compiled_compact_templates_are_the_numpy_assembly(env_id, lookahead):
+    # Bit for bit, with lookaheads reaching past the task's end (n_waypoints=4).
+    env = gym.make(env_id, lookahead=lookahead, n_waypoints=4)
+    base = env.unwrapped
+    builder = base._observations
+    for seed in range(3):
+        env.reset(seed=seed)
+        ladder = base.ladder
+        leaving, arriving = builder._travel_summaries(ladder)
+        expected = _numpy_compact_templates(builder, ladder, leaving, arriving)
+        assembled = builder._assemble(ladder)
+        assert assembled.dtype == np.float32
+        np.testing.assert_array_equal(assembled.view(np.uint32), expected.view(np.uint32))
+        np.testing.assert_array_equal(base._episode.templates[0], assembled)
