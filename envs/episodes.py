@@ -117,17 +117,20 @@ class EpisodeBatch:
             scenes, dtype=np.int64)
         self.tokens = np.zeros(size, dtype=np.int64)
         self._memo = stepping.memo_arrays(dof)
+        self._copies = stepping.copy_memo_arrays(dof)
         self._bind()
 
     def _bind(self) -> None:
         """(Re)build the compiled stages' view of the arrays."""
         pricer, builder = self.pricer, self.observations
         cost, layout = pricer.cost, builder.layout
-        numbers = np.array([cost.travel_weight, cost.time_weight, pricer.collision_penalty,
-                            pricer.invalid_penalty, float(pricer.terminate_on_collision),
-                            pricer.max_transition_cost, pricer.travel_scale,
-                            pricer.checker.resolution, builder.onward_moves,
-                            builder.checked_moves or 0])
+        #: ``stepping``'s numbers (weights, penalties, grid, layout counts, turn copies).
+        self._numbers = numbers = np.array([
+            cost.travel_weight, cost.time_weight, pricer.collision_penalty,
+            pricer.invalid_penalty, float(pricer.terminate_on_collision),
+            pricer.max_transition_cost, pricer.travel_scale, pricer.checker.resolution,
+            builder.onward_moves, builder.checked_moves or 0,
+            float(bool(pricer.arm.turn_windows))])
         onward = layout.get("slot0/free_travel_out", (-1, -1))
         ahead = layout.get("slot0/free_travel_onward", (-1, -1))
         slices = np.array([*layout["q"], *layout["slot0/travel"],
@@ -138,7 +141,7 @@ class EpisodeBatch:
             self.flags, self.observation, cost.weights, cost.speeds, numbers, slices,
             builder._centre, builder._half_range, pricer.checker.lever, self.scenes,
             self.tokens, *self._memo, self.inside, self.limits, self._configuration,
-            self._revolute, self.branch, self.checked)
+            self._revolute, self.branch, self.checked, *self._copies)
 
     #: The per-row arrays (a view of one row shares them).
     _ROW_ARRAYS = ("q", "index", "collided", "invalid", "candidates", "valid", "endpoint",
@@ -154,7 +157,7 @@ class EpisodeBatch:
         one.observations, one.checks = self.observations, checks
         for name in self._ROW_ARRAYS:
             setattr(one, name, getattr(self, name)[row : row + 1])
-        one.scenes, one._memo = np.zeros(1, dtype=np.int64), self._memo
+        one.scenes, one._memo, one._copies = np.zeros(1, dtype=np.int64), self._memo, self._copies
         one._configuration, one._revolute = self._configuration, self._revolute
         one._bind()
         return one

@@ -375,12 +375,12 @@ class ObservationBuilder:
     def _assemble(self, ladder: TaskMoves) -> np.ndarray:
         """The templates of :meth:`templates`, (N + 1, size) float32."""
         if self.kind == "compact":
-            templates = np.empty((ladder.n_waypoints + 1, self.size), dtype=np.float32)
+            assembled = np.empty((ladder.n_waypoints + 1, self.size), dtype=np.float32)
             leaving, arriving = self._travel_summaries(ladder)
             _compact_templates(ladder.candidates, ladder.valid, ladder.endpoint_collision,
                                self._centre, self._half_range, leaving, arriving,
-                               self._slot_starts, self.layout["progress"][0], templates)
-            return templates
+                               self._slot_starts, self.layout["progress"][0], assembled)
+            return assembled
         n, k, dof = ladder.n_waypoints, self.arm.n_branches, self.arm.dof
         valid = ladder.valid
         # Per waypoint: present, candidates (invalid ones at the centre: 0), valid, endpoint.

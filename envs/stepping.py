@@ -23,7 +23,12 @@ The path memo is an open-addressing hash table of verdicts, keyed by the exact b
 path's two ends and the scene they were checked in (a token that changes whenever a
 scene is laid anew): a move met again — the onward path a step checked, taken by the
 next step; a finite pose set's moves, episode after episode — is not checked again. It
-holds ``MEMO_SLOTS`` entries and starts afresh when half full.
+holds ``MEMO_SLOTS`` entries and starts afresh when half full. On an arm with turn
+branches a second memo, of turn copies, serves paths whose ends differ by the same whole
+turns of revolute joints: they place every link alike, so a verdict the filter's proofs
+reached for one (no sample decided by MuJoCo) is the verdict of every copy
+(:func:`_copy_verdicts`); a reset's onward search from every branch of the first
+waypoint asks many of them.
 
 Everything lives in one :class:`Episodes` object (a numba StructRef: one argument to
 unbox, where its ~30 arrays would cost several µs a call).
@@ -45,9 +50,16 @@ from ikbranch_gym.envs.process import UNKNOWN, move_blocked
 _FLAGS = np.array([False, True])
 #: Slots of the path memo (a power of two); it starts afresh when half are taken.
 MEMO_SLOTS = 2**16
+#: Slots of the turn-copy memo (a power of two); it starts afresh when half are taken.
+COPY_SLOTS = 2**14
+#: The turn-copy memo keys a path by its ends rounded to 1 / ``COPY_GRID`` (rad, m).
+COPY_GRID = 1e9
+#: States of a turn-copy memo slot: empty, a verdict proved free or colliding, a path of
+#: this call being checked (``copy_owner``), and a path MuJoCo helped decide.
+COPY_EMPTY, COPY_FREE, COPY_HIT, COPY_PENDING, COPY_UNPROVED = -1, 0, 1, 2, 3
 #: Indices into ``Episodes.numbers``.
 TRAVEL_WEIGHT, TIME_WEIGHT, COLLISION_PENALTY, INVALID_PENALTY, TERMINATE, MAX_COST = range(6)
-TRAVEL_SCALE, RESOLUTION, ONWARD_MOVES, CHECKED_MOVES = 6, 7, 8, 9
+TRAVEL_SCALE, RESOLUTION, ONWARD_MOVES, CHECKED_MOVES, TURN_COPIES = 6, 7, 8, 9, 10
 #: Indices into ``Episodes.layout``: start and stop of the observation's slices (q, slot
 #: 0's travel, path collisions, onward free travel and free travel of ``ONWARD_MOVES``
 #: moves; −1 where the layout has none).
@@ -57,7 +69,8 @@ FIELDS = ("q", "index", "collided", "invalid", "candidates", "valid", "endpoint"
           "free_start", "lengths", "templates", "values", "flags", "observation", "weights",
           "speeds", "numbers", "layout", "centre", "half_range", "lever", "scenes", "tokens",
           "memo_keys", "memo_tokens", "memo_verdicts", "memo_count", "inside", "limits",
-          "configuration", "revolute", "branch", "checked")
+          "configuration", "revolute", "branch", "checked", "copy_keys", "copy_tokens",
+          "copy_verdicts", "copy_owner", "copy_count")
 
 
 @structref.register
@@ -82,7 +95,7 @@ def make_episodes(q, index, collided, invalid, candidates, valid, endpoint, free
                   lengths, templates, values, flags, observation, weights, speeds, numbers,
                   layout, centre, half_range, lever, scenes, tokens, memo_keys, memo_tokens,
                   memo_verdicts, memo_count, inside, limits, configuration, revolute, branch,
-                  checked):
+                  checked, copy_keys, copy_tokens, copy_verdicts, copy_owner, copy_count):
     """An :class:`Episodes` of these arrays (``FIELDS`` order), made in compiled code:
     numba caches this on disk, where the proxy's own constructor is compiled again in
     every process."""
@@ -90,7 +103,7 @@ def make_episodes(q, index, collided, invalid, candidates, valid, endpoint, free
                     lengths, templates, values, flags, observation, weights, speeds, numbers,
                     layout, centre, half_range, lever, scenes, tokens, memo_keys, memo_tokens,
                     memo_verdicts, memo_count, inside, limits, configuration, revolute, branch,
-                    checked)
+                    checked, copy_keys, copy_tokens, copy_verdicts, copy_owner, copy_count)
 
 
 def memo_arrays(dof: int) -> tuple[np.ndarray, ...]:
@@ -99,6 +112,15 @@ def memo_arrays(dof: int) -> tuple[np.ndarray, ...]:
     return (np.zeros((MEMO_SLOTS, 2 * dof), dtype=np.int64),
             np.zeros(MEMO_SLOTS, dtype=np.int64), np.full(MEMO_SLOTS, -1, dtype=np.int8),
             np.zeros(1, dtype=np.int64))
+
+
+def copy_memo_arrays(dof: int) -> tuple[np.ndarray, ...]:
+    """An empty turn-copy memo: keys (slots, 2·dof + 1: the rounded ends and the grid),
+    scene tokens, states (``COPY_EMPTY`` …), the owner of each pending slot and the count
+    of entries."""
+    return (np.zeros((COPY_SLOTS, 2 * dof + 1), dtype=np.int64),
+            np.zeros(COPY_SLOTS, dtype=np.int64), np.full(COPY_SLOTS, COPY_EMPTY, dtype=np.int8),
+            np.zeros(COPY_SLOTS, dtype=np.int64), np.zeros(1, dtype=np.int64))
 
 
 # ------------------------------------------------------------------------- path memo
@@ -148,8 +170,8 @@ def _memo_put(ep, token, start, end, hit):
 @njit
 def _paths_collide(ep, bound, rows, starts, ends):
     """(M,) bool: path m (``starts[m]`` → ``ends[m]``, in the scene of row ``rows[m]``)
-    collides; from the memo where it is there, the others in one kernel call, then
-    remembered."""
+    collides; from the memo where it is there, then from a turn copy's proved verdict
+    (:func:`_copy_verdicts`), the others in one kernel call, then remembered."""
     count = len(rows)
     out = np.zeros(count, dtype=np.bool_)
     missing = np.empty(count, dtype=np.int64)
@@ -170,13 +192,119 @@ def _paths_collide(ep, bound, rows, starts, ends):
         scenes = np.empty(misses, dtype=np.int64)
         for i in range(misses):
             scenes[i] = ep.scenes[rows[picked[i]]]
-        index = np.empty(misses, dtype=np.int64)
-        bound_paths(bound, scenes, first, last, steps, _FLAGS[0], index)
+        hits = np.empty(misses, dtype=np.bool_)
+        if ep.numbers[TURN_COPIES] != 0.0 and 2 * misses <= len(ep.copy_tokens):
+            _copy_verdicts(ep, bound, rows[picked], first, last, steps, scenes, hits)
+        else:
+            _check(bound, scenes, first, last, steps, hits)
         for i in range(misses):
             m = picked[i]
-            out[m] = index[i] >= 0
+            out[m] = hits[i]
             _memo_put(ep, ep.tokens[rows[m]], starts[m], ends[m], out[m])
     return out
+
+
+@njit
+def _check(bound, scenes, first, last, steps, hits):
+    """``hits[i]``: path ``first[i]`` → ``last[i]`` (grid ``steps[i]``, in scene
+    ``scenes[i]``) collides: one kernel call."""
+    index = np.empty(len(steps), dtype=np.int64)
+    bound_paths(bound, scenes, first, last, steps, _FLAGS[0], index)
+    for i in range(len(steps)):
+        hits[i] = index[i] >= 0
+
+
+@njit
+def _copy_verdicts(ep, bound, rows, first, last, steps, scenes, hits):
+    """:func:`_check` of the paths of ``rows`` where their turn copies share it: paths
+    whose ends differ by whole turns of revolute joints (the same shift at both ends)
+    place every link alike along the way, up to rounding. A copy takes the verdict of a
+    path the filter's proofs decided, without MuJoCo: those hold with a tolerance
+    (``DISTANCE_TOLERANCE``, ``WITNESS_TOLERANCE``: micrometres) far above the
+    nanometres by which copies, and paths keyed alike, can differ. Paths are keyed by
+    their ends with the start's turns taken off both, rounded to 1 / ``COPY_GRID``, and
+    by their grid; in the scene's token. Of the paths of one key in this call one is
+    checked; where MuJoCo decided a sample of the call, every path is checked itself."""
+    misses, dof = len(steps), first.shape[1]
+    if 2 * (ep.copy_count[0] + misses) > len(ep.copy_tokens):  # start afresh
+        ep.copy_verdicts[:] = COPY_EMPTY
+        ep.copy_count[0] = 0
+    owner = np.full(misses, -1, dtype=np.int64)  # −1: checked itself; −2: a known verdict
+    slots = np.empty(misses, dtype=np.int64)
+    key = np.empty(2 * dof + 1, dtype=np.int64)
+    for i in range(misses):
+        token = ep.tokens[rows[i]]
+        _copy_key(ep.revolute, first[i], last[i], steps[i], key)
+        slot = _copy_slot(ep, token, key)
+        slots[i] = slot
+        state = ep.copy_verdicts[slot]
+        if state == COPY_FREE or state == COPY_HIT:
+            hits[i], owner[i] = state == COPY_HIT, -2
+        elif state == COPY_PENDING:
+            owner[i] = ep.copy_owner[slot]
+        else:  # this path is checked, and keys the slot until its verdict is in
+            if state == COPY_EMPTY:
+                ep.copy_keys[slot] = key
+                ep.copy_tokens[slot] = token
+                ep.copy_count[0] += 1
+            ep.copy_verdicts[slot], ep.copy_owner[slot] = COPY_PENDING, i
+    checked = np.flatnonzero(owner == -1)
+    before = bound.counters[1]
+    found = np.empty(len(checked), dtype=np.bool_)
+    _check(bound, scenes[checked], first[checked], last[checked], steps[checked], found)
+    proved = bound.counters[1] == before  # no sample of the call went to MuJoCo
+    for c in range(len(checked)):
+        i = checked[c]
+        hits[i] = found[c]
+        if proved:
+            ep.copy_verdicts[slots[i]] = COPY_HIT if found[c] else COPY_FREE
+        else:
+            ep.copy_verdicts[slots[i]] = COPY_UNPROVED
+    copies = np.flatnonzero(owner >= 0)
+    if proved:
+        for copy in copies:
+            hits[copy] = hits[owner[copy]]
+    elif len(copies):
+        found = np.empty(len(copies), dtype=np.bool_)
+        _check(bound, scenes[copies], first[copies], last[copies], steps[copies], found)
+        for c in range(len(copies)):
+            hits[copies[c]] = found[c]
+
+
+@njit
+def _copy_key(revolute, start, end, steps, key):
+    """The turn-copy key of the path ``start`` → ``end`` (``steps``) into ``key``: both
+    ends less the start's whole turns of each revolute joint, rounded to
+    1 / ``COPY_GRID``, then the grid."""
+    dof = len(start)
+    for j in range(dof):
+        shift = 2.0 * np.pi * np.rint(start[j] / (2.0 * np.pi)) if revolute[j] else 0.0
+        key[j] = np.int64(np.rint((start[j] - shift) * COPY_GRID))
+        key[dof + j] = np.int64(np.rint((end[j] - shift) * COPY_GRID))
+    key[2 * dof] = steps
+
+
+@njit
+def _copy_slot(ep, token, key):
+    """The turn-copy memo slot of ``key`` in scene ``token``: where it is, or the empty
+    slot where it would go."""
+    keys, tokens, states = ep.copy_keys, ep.copy_tokens, ep.copy_verdicts
+    h = np.uint64(14695981039346656037) ^ np.uint64(token)
+    for j in range(len(key)):
+        h = (h ^ np.uint64(key[j])) * np.uint64(1099511628211)
+    mask = len(tokens) - 1
+    slot = int(h ^ (h >> np.uint64(29))) & mask
+    while states[slot] != COPY_EMPTY:
+        if tokens[slot] == token:
+            same = True
+            for j in range(len(key)):
+                if keys[slot, j] != key[j]:
+                    same = False
+                    break
+            if same:
+                return slot
+        slot = (slot + 1) & mask
+    return slot
 
 
 # ------------------------------------------------------------------ process continuity
