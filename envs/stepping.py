@@ -225,34 +225,17 @@ def _copy_verdicts(ep, bound, rows, first, last, steps, scenes, hits):
     their ends with the start's turns taken off both, rounded to 1 / ``COPY_GRID``, and
     by their grid; in the scene's token. Of the paths of one key in this call one is
     checked; where MuJoCo decided a sample of the call, every path is checked itself."""
-    misses, dof = len(steps), first.shape[1]
-    if 2 * (ep.copy_count[0] + misses) > len(ep.copy_tokens):  # start afresh
+    if 2 * (ep.copy_count[0] + len(steps)) > len(ep.copy_tokens):  # start afresh
         ep.copy_verdicts[:] = COPY_EMPTY
         ep.copy_count[0] = 0
-    owner = np.full(misses, -1, dtype=np.int64)  # −1: checked itself; −2: a known verdict
-    slots = np.empty(misses, dtype=np.int64)
-    key = np.empty(2 * dof + 1, dtype=np.int64)
-    for i in range(misses):
-        token = ep.tokens[rows[i]]
-        _copy_key(ep.revolute, first[i], last[i], steps[i], key)
-        slot = _copy_slot(ep, token, key)
-        slots[i] = slot
-        state = ep.copy_verdicts[slot]
-        if state == COPY_FREE or state == COPY_HIT:
-            hits[i], owner[i] = state == COPY_HIT, -2
-        elif state == COPY_PENDING:
-            owner[i] = ep.copy_owner[slot]
-        else:  # this path is checked, and keys the slot until its verdict is in
-            if state == COPY_EMPTY:
-                ep.copy_keys[slot] = key
-                ep.copy_tokens[slot] = token
-                ep.copy_count[0] += 1
-            ep.copy_verdicts[slot], ep.copy_owner[slot] = COPY_PENDING, i
+    owner, slots = _copy_owners(ep, rows, first, last, steps, hits)
     checked = np.flatnonzero(owner == -1)
-    before = bound.counters[1]
     found = np.empty(len(checked), dtype=np.bool_)
-    _check(bound, scenes[checked], first[checked], last[checked], steps[checked], found)
-    proved = bound.counters[1] == before  # no sample of the call went to MuJoCo
+    proved = True
+    if len(checked):
+        before = bound.counters[1]
+        _check(bound, scenes[checked], first[checked], last[checked], steps[checked], found)
+        proved = bound.counters[1] == before  # no sample of the call went to MuJoCo
     for c in range(len(checked)):
         i = checked[c]
         hits[i] = found[c]
@@ -269,6 +252,34 @@ def _copy_verdicts(ep, bound, rows, first, last, steps, scenes, hits):
         _check(bound, scenes[copies], first[copies], last[copies], steps[copies], found)
         for c in range(len(copies)):
             hits[copies[c]] = found[c]
+
+
+@njit
+def _copy_owners(ep, rows, first, last, steps, hits):
+    """Per path of :func:`_copy_verdicts` its memo slot and who decides it (``owner``):
+    −2 a proved verdict in the memo (into ``hits``), i ≥ 0 path i of this call, −1 the
+    path itself, which then holds its slot pending until its verdict is in."""
+    misses = len(steps)
+    owner = np.full(misses, -1, dtype=np.int64)
+    slots = np.empty(misses, dtype=np.int64)
+    key = np.empty(2 * first.shape[1] + 1, dtype=np.int64)
+    for i in range(misses):
+        token = ep.tokens[rows[i]]
+        _copy_key(ep.revolute, first[i], last[i], steps[i], key)
+        slot = _copy_slot(ep, token, key)
+        slots[i] = slot
+        state = ep.copy_verdicts[slot]
+        if state == COPY_FREE or state == COPY_HIT:
+            hits[i], owner[i] = state == COPY_HIT, -2
+        elif state == COPY_PENDING:
+            owner[i] = ep.copy_owner[slot]
+        else:
+            if state == COPY_EMPTY:
+                ep.copy_keys[slot] = key
+                ep.copy_tokens[slot] = token
+                ep.copy_count[0] += 1
+            ep.copy_verdicts[slot], ep.copy_owner[slot] = COPY_PENDING, i
+    return owner, slots
 
 
 @njit
