@@ -125,29 +125,34 @@ def copy_memo_arrays(dof: int) -> tuple[np.ndarray, ...]:
 
 # ------------------------------------------------------------------------- path memo
 @njit(inline="always")
-def _memo_slot(ep, token, start, end):
-    """The memo slot of the path ``start`` → ``end`` in scene ``token``: where it is, or
-    the empty slot where it would go."""
-    keys, tokens, verdicts = ep.memo_keys, ep.memo_tokens, ep.memo_verdicts
-    a, b = start.view(np.int64), end.view(np.int64)
-    dof = len(a)
+def _slot(keys, tokens, states, token, key):
+    """The slot of ``key`` (int64) in scene ``token`` of an open-addressing table (the path
+    memo, the turn-copy memo: rows of ``keys``, ``tokens``, ``states`` with −1 for an
+    empty slot): where it is, or the empty slot where it would go."""
     h = np.uint64(14695981039346656037) ^ np.uint64(token)
-    for j in range(dof):
-        h = (h ^ np.uint64(a[j])) * np.uint64(1099511628211)
-        h = (h ^ np.uint64(b[j])) * np.uint64(1099511628211)
+    for j in range(len(key)):
+        h = (h ^ np.uint64(key[j])) * np.uint64(1099511628211)
     mask = len(tokens) - 1
     slot = int(h ^ (h >> np.uint64(29))) & mask
-    while verdicts[slot] >= 0:
+    while states[slot] != -1:
         if tokens[slot] == token:
             same = True
-            for j in range(dof):
-                if keys[slot, j] != a[j] or keys[slot, dof + j] != b[j]:
+            for j in range(len(key)):
+                if keys[slot, j] != key[j]:
                     same = False
                     break
             if same:
                 return slot
         slot = (slot + 1) & mask
     return slot
+
+
+@njit(inline="always")
+def _memo_slot(ep, token, start, end):
+    """The memo slot of the path ``start`` → ``end`` in scene ``token`` (keyed by the exact
+    bits of both ends): where it is, or the empty slot where it would go."""
+    return _slot(ep.memo_keys, ep.memo_tokens, ep.memo_verdicts, token,
+                 np.concatenate((start.view(np.int64), end.view(np.int64))))
 
 
 @njit(inline="always")
@@ -159,10 +164,8 @@ def _memo_put(ep, token, start, end, hit):
     slot = _memo_slot(ep, token, start, end)
     if ep.memo_verdicts[slot] < 0:
         ep.memo_count[0] += 1
-    a, b = start.view(np.int64), end.view(np.int64)
-    dof = len(a)
-    for j in range(dof):
-        ep.memo_keys[slot, j], ep.memo_keys[slot, dof + j] = a[j], b[j]
+    dof = len(start)
+    ep.memo_keys[slot, :dof], ep.memo_keys[slot, dof:] = start.view(np.int64), end.view(np.int64)
     ep.memo_tokens[slot] = token
     ep.memo_verdicts[slot] = 1 if hit else 0
 
@@ -295,27 +298,11 @@ def _copy_key(revolute, start, end, steps, key):
     key[2 * dof] = steps
 
 
-@njit
+@njit(inline="always")
 def _copy_slot(ep, token, key):
     """The turn-copy memo slot of ``key`` in scene ``token``: where it is, or the empty
     slot where it would go."""
-    keys, tokens, states = ep.copy_keys, ep.copy_tokens, ep.copy_verdicts
-    h = np.uint64(14695981039346656037) ^ np.uint64(token)
-    for j in range(len(key)):
-        h = (h ^ np.uint64(key[j])) * np.uint64(1099511628211)
-    mask = len(tokens) - 1
-    slot = int(h ^ (h >> np.uint64(29))) & mask
-    while states[slot] != COPY_EMPTY:
-        if tokens[slot] == token:
-            same = True
-            for j in range(len(key)):
-                if keys[slot, j] != key[j]:
-                    same = False
-                    break
-            if same:
-                return slot
-        slot = (slot + 1) & mask
-    return slot
+    return _slot(ep.copy_keys, ep.copy_tokens, ep.copy_verdicts, token, key)
 
 
 # ------------------------------------------------------------------ process continuity
