@@ -173,16 +173,29 @@ for _env_id, _kwargs in ENV_SPECS.items():
 
 
 
-def warm_up() -> None:
+#: What :func:`warm_up` compiles side by side in two processes, a phase at a time: every
+#: kernel of a phase calls only kernels of itself and of the phases before (numba compiles
+#: a callee that is not yet on disk again, in the caller's process).
+WARM_UP_PHASES = (("configurations", "paths"), ("chain", "stepping"))
+
+
+def warm_up(processes: int = 1) -> None:
     """Compile (or load from numba's on-disk cache) every kernel an episode runs: the IK
     driver, the collision filter, the clutter, the random chain, the stepping stages and
     observation assembly, in single and vector envs. ``make`` runs it
     once before parallel processes (test workers) start, so they load instead of compiling
-    the same kernels at once."""
+    the same kernels at once. With ``processes=2`` the phases of ``WARM_UP_PHASES`` come
+    first, each in two processes at once, and this process then loads what they compiled
+    (and compiles what no phase reached)."""
     from ikbranch_gym.envs.ik_branch_env import IKBranchEnv
     from ikbranch_gym.envs.kinematics import compiled as kinematics
     from ikbranch_gym.envs.models import filter as collision
 
+    if processes not in (1, 2):
+        raise ValueError(f"warm_up: processes must be 1 or 2, got {processes!r}")
+    if processes == 2:
+        for phase in WARM_UP_PHASES:
+            _run_side_by_side(phase)
     kinematics.warm_up()
     collision.warm_up()
     # A per-episode clutter (the random chain) seen several moves ahead, a fixed cell, an
@@ -202,6 +215,46 @@ def warm_up() -> None:
     _, info = vec.reset(seed=0)
     vec.step(info["action_mask"].argmax(axis=1))
     vec.close()
+
+
+def _run_side_by_side(parts: tuple[str, ...]) -> None:
+    import subprocess
+    import sys
+
+    code = "import sys; from ikbranch_gym.envs import _warm_up_part; _warm_up_part(sys.argv[1])"
+    running = [subprocess.Popen([sys.executable, "-c", code, part]) for part in parts]
+    failed = [part for part, process in zip(parts, running, strict=True) if process.wait()]
+    if failed:
+        raise RuntimeError(f"warm_up: compiling {', '.join(failed)} failed (output above)")
+
+
+def _warm_up_part(part: str) -> None:
+    """One part of ``WARM_UP_PHASES``: the filter's configuration or path kernels (with the
+    IK driver), the random chain, or the stepping stages on a fixed cell (no chain)."""
+    import numpy as np
+
+    from ikbranch_gym.envs.ik_branch_env import IKBranchEnv
+    from ikbranch_gym.envs.kinematics import compiled as kinematics
+    from ikbranch_gym.envs.models import filter as collision
+    from ikbranch_gym.envs.random_chain import random_chain_configurations
+
+    if part in ("configurations", "paths"):
+        if part == "configurations":
+            kinematics.warm_up()
+        collision.warm_up(configurations=part == "configurations", paths=part == "paths")
+    elif part == "chain":
+        env = gym.make("IKBranch/Anthropomorphic-v4").unwrapped
+        assert isinstance(env, IKBranchEnv)
+        random_chain_configurations(env._task_arm, np.random.default_rng(0), 2,
+                                    env.compiled_filter, env.checker.lever,
+                                    env.checker.resolution)
+    elif part == "stepping":
+        fixed = gym.make("IKBranch/ToolTransfer-v2", n_waypoints=2)
+        fixed.reset(seed=0)
+        assert isinstance(fixed.unwrapped, IKBranchEnv)
+        fixed.step(int(fixed.unwrapped.action_masks().argmax()))
+    else:
+        raise ValueError(f"warm_up: no part {part!r}")
 
 
 __all__ = ["CHECKED_SUCCESSORS", "CURRENT_IDS", "ENV_IDS", "ENV_SPECS", "ONWARD_SUCCESSORS",

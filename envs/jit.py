@@ -7,7 +7,9 @@ across modules, so they are cached in one directory named by a hash of every mod
 ``KERNEL_SOURCES``: any edit to one of them compiles all of them afresh (``make`` does it
 once, ``ikbranch_gym.warm_up``), and no stale code can be loaded. A test checks that every module
 of ``envs`` that compiles kernels is listed (``envs/kinematics`` has its own driver and
-cache, ``envs.kinematics.compiled``).
+cache, ``envs.kinematics.compiled``). Where the sources lie does not matter
+(``envs.kinematics.compiled.cached_njit``): installs of one version that share a
+``NUMBA_CACHE_DIR`` compile the kernels once.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from typing import Any
 
 import numba
 
-from ikbranch_gym.envs.kinematics.compiled import writable_cache
+from ikbranch_gym.envs.kinematics.compiled import cached_njit, writable_cache
 
 _ROOT = Path(__file__).resolve().parent
 
@@ -52,21 +54,11 @@ def cache_directory() -> str | None:
 
 
 def njit(function: Callable | None = None, **options: Any) -> Any:
-    """``numba.njit(cache=True, **options)``, cached in :func:`cache_directory`; usable
+    """``numba.njit(**options)``, cached in :func:`cache_directory` (``cached_njit``); usable
     bare (``@njit``) or with options (``@njit(inline="always")``)."""
     if function is None:
         return functools.partial(njit, **options)
     directory = cache_directory()
     if directory is None:
         return numba.njit(**options)(function)
-    # numba reads the cache location when a function is decorated (NUMBA_CACHE_DIR's
-    # setting): set for this decoration only, so other packages keep their own caches.
-    # numba.config sets its options at import time from NUMBA_* variables: no stub declares
-    # them.
-    config: Any = numba.config
-    saved = config.CACHE_DIR
-    config.CACHE_DIR = directory
-    try:
-        return numba.njit(cache=True, **options)(function)
-    finally:
-        config.CACHE_DIR = saved
+    return cached_njit(function, Path(directory), _ROOT, **options)

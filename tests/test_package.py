@@ -23,9 +23,9 @@ FOLDERS = ("envs", "agents", "train", "configs")
 CORE = {"numpy", "gymnasium", "mujoco", "numba"}
 
 
-def _python(code: str, cwd: Path, python: str = sys.executable,
-            timeout: float = 600) -> subprocess.CompletedProcess:
-    env = {**os.environ, "MUJOCO_GL": "egl"}
+def _python(code: str, cwd: Path, python: str = sys.executable, timeout: float = 600,
+            env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
+    env = {**os.environ, "MUJOCO_GL": "egl", **(env or {})}
     env.pop("PYTHONPATH", None)
     return subprocess.run([python, "-c", textwrap.dedent(code)], cwd=cwd, env=env,
                           capture_output=True, text=True, timeout=timeout)
@@ -140,6 +140,19 @@ def _copy_sources(target: Path) -> Path:
     return target
 
 
+def _shared_kernel_cache(root: Path) -> Path:
+    """A ``NUMBA_CACHE_DIR`` holding this session's kernel caches (the env's and the IK
+    driver's), linked: whatever sources share them find their kernels there."""
+    from ikbranch_gym.envs import jit
+    from ikbranch_gym.envs.kinematics import compiled
+
+    root.mkdir()
+    for directory in (jit.cache_directory(), compiled.cache_directory()):
+        assert directory is not None, "no writable kernel cache in this session"
+        (root / Path(directory).name).symlink_to(directory)
+    return root
+
+
 def test_the_wheel_installs_into_a_fresh_venv_with_core_extras_then_trains(tmp_path):
     # Built from the sources, installed outside the repository: gym.make and steps with the
     # core dependencies only (none of the extras' packages present), from a folder with
@@ -157,6 +170,10 @@ def test_the_wheel_installs_into_a_fresh_venv_with_core_extras_then_trains(tmp_p
     subprocess.run([*pip, "install", "--quiet", str(wheel)], check=True, capture_output=True,
                    timeout=600)
     user = _user_folder(tmp_path)
+    # The installed sources are this checkout's: with the test session's kernel caches
+    # shared, the install loads every kernel instead of compiling it (three minutes), and
+    # that is checked too. Compiling from nothing is what every fresh clone's warm-up does.
+    shared = {"NUMBA_CACHE_DIR": str(_shared_kernel_cache(tmp_path / "numba"))}
     result = _python("""
         import envs, sys
         import gymnasium as gym
@@ -168,17 +185,23 @@ def test_the_wheel_installs_into_a_fresh_venv_with_core_extras_then_trains(tmp_p
             if terminated or truncated:
                 obs, info = env.reset()
         import ikbranch_gym
+        from ikbranch_gym.envs import stepping
+        from ikbranch_gym.envs.kinematics.compiled import compiled_solve_poses
         from ikbranch_gym.envs.models.filter.lanes import library  # its C source ships
         print(envs.OWNER, ikbranch_gym.__version__, ikbranch_gym.__file__.startswith(sys.prefix),
               library() is not None)
         print(sorted(m for m in ("torch", "stable_baselines3", "ray", "yaml", "coacd",
                                  "matplotlib", "rliable", "pandas") if m in sys.modules))
-    """, cwd=user, python=python)
+        kernels = (stepping.survey, stepping.advance, compiled_solve_poses())
+        print(*(sum(sum(getattr(kernel.stats, kind).values()) for kernel in kernels)
+                for kind in ("cache_hits", "cache_misses")))
+    """, cwd=user, python=python, env=shared)
     assert result.returncode == 0, result.stderr
-    first, second = result.stdout.strip().splitlines()[-2:]
+    first, second, third = result.stdout.strip().splitlines()[-3:]
     version = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["version"]
     assert first.split() == ["user", "envs", version, "True", "True"]
     assert second == "[]"
+    assert third.split() == ["3", "0"], "the install compiled kernels its sources share"
     for name in ("torch", "stable_baselines3", "ray", "coacd"):
         probe = _python(f"import {name}", cwd=user, python=python)
         assert probe.returncode != 0, f"{name} was installed without its extra"
@@ -208,7 +231,7 @@ def test_the_wheel_installs_into_a_fresh_venv_with_core_extras_then_trains(tmp_p
          "--timesteps", "64", "--n-envs", "1", "--run-dir", "run", "--no-progress",
          "--hyperparams", '{"n_steps": 32, "batch_size": 32, "n_epochs": 1}'],
         capture_output=True, text=True, cwd=user, timeout=600,
-        env={**os.environ, "MUJOCO_GL": "egl"})
+        env={**os.environ, "MUJOCO_GL": "egl", **shared})
     assert trained.returncode == 0, trained.stderr
     assert (user / "run" / "model.zip").is_file()
     config = (user / "run" / "config.yml").read_text()

@@ -344,6 +344,63 @@ def writable_cache(name: str, beside: Path) -> Path | None:
     return None
 
 
+def cached_njit(function: Callable, directory: Path, root: Path, **options: Any) -> Any:
+    """``numba.njit(**options)(function)`` cached on disk in ``directory``, under the path
+    of the function's source file relative to ``root``, and stamped with a hash of that
+    file's text.
+
+    numba names a cache by the absolute path of the source, so a second checkout or virtual
+    environment of the very same sources would compile everything again (minutes). Here
+    only what the sources say counts: every install of one version that shares a
+    ``NUMBA_CACHE_DIR`` (test workers, Ray workers, several venvs, a CI cache) compiles
+    each kernel once. ``directory`` must be named by a hash of every source its kernels
+    are compiled from (:func:`writable_cache`, :func:`source_digest`)."""
+    numba = _numba()
+    dispatcher = numba.njit(**options)(function)
+    # What njit(cache=True) does, with this cache in place of numba's own (FunctionCache).
+    dispatcher._cache = _portable_cache(str(directory), str(root.resolve()))(function)
+    return dispatcher
+
+
+@functools.cache
+def _portable_cache(directory: str, root: str) -> type:
+    """numba's ``FunctionCache`` with the locator of :func:`cached_njit`."""
+    from numba.core import caching
+
+    class Locator(caching._CacheLocator):
+        def __init__(self, py_func: Callable, py_file: str) -> None:
+            self._lineno = py_func.__code__.co_firstlineno
+            relative = Path(py_file).resolve().relative_to(root)
+            self._path = str(Path(directory, *relative.parent.parts))
+            self._stamp = hashlib.sha256(Path(py_file).read_bytes()).hexdigest()
+
+        def get_cache_path(self) -> str:
+            return self._path
+
+        def get_source_stamp(self) -> str:
+            return self._stamp
+
+        def get_disambiguator(self) -> str:
+            return str(self._lineno)
+
+        @classmethod
+        def from_function(cls, py_func: Callable, py_file: str) -> Any:
+            locator = cls(py_func, py_file)
+            try:
+                locator.ensure_cache_path()
+            except OSError:  # numba then says that no cache location is available
+                return None
+            return locator
+
+    class Impl(caching.CompileResultCacheImpl):
+        _locator_classes = [Locator]  # noqa: RUF012 (numba declares it a list)
+
+    class Cache(caching.FunctionCache):
+        _impl_class = Impl
+
+    return Cache
+
+
 @functools.cache
 def compiled_solve_poses() -> Callable:
     """``solve_poses`` compiled (loaded from the on-disk cache after the first time), or the
@@ -360,14 +417,7 @@ def compiled_solve_poses() -> Callable:
     directory = cache_directory()
     if directory is None:
         return numba.njit(solve_poses)
-    # numba picks the cache location when the function is decorated, from this setting
-    # (NUMBA_CACHE_DIR's); restored at once so other kernels keep their own caches.
-    saved = numba.config.CACHE_DIR
-    numba.config.CACHE_DIR = str(directory)
-    try:
-        return numba.njit(cache=True)(solve_poses)
-    finally:
-        numba.config.CACHE_DIR = saved
+    return cached_njit(solve_poses, directory, Path(__file__).parent)
 
 
 def driver_arguments(arm: Arm) -> tuple[Any, ...]:

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numba
+import pytest
 
 import ikbranch_gym.envs as envs
 from ikbranch_gym.envs import jit
@@ -73,3 +74,13 @@ def test_single_and_vector_envs_and_frozen_rows_share_one_compiled_version():
                    for signature in kernels.bound_configurations.signatures)
     single.close()
     vector.close()
+
+
+def test_warm_up_takes_one_or_two_processes_and_known_parts():
+    with pytest.raises(ValueError, match="processes must be 1 or 2"):
+        envs.warm_up(processes=3)
+    with pytest.raises(ValueError, match="no part 'everything'"):
+        envs._warm_up_part("everything")
+    for phase in envs.WARM_UP_PHASES:  # each part runs (here from the warm cache)
+        for part in phase:
+            envs._warm_up_part(part)

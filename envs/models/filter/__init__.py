@@ -211,10 +211,11 @@ def _same_model(one: CompiledScene, other: CompiledScene) -> bool:
     return True
 
 
-def warm_up() -> None:
+def warm_up(configurations: bool = True, paths: bool = True) -> None:
     """Compile (or load from numba's on-disk cache) every kernel with the argument types
     the checker passes, on a small model: ``make`` runs it once before the tests, so
-    parallel test processes load the cache instead of compiling each."""
+    parallel test processes load the cache instead of compiling each. The configuration
+    and the path kernels share no caller: two processes may compile one each."""
     from ..collision import CollisionChecker
     from ..model import build_model
 
@@ -224,10 +225,12 @@ def warm_up() -> None:
         checker.refresh_static()
         q = np.zeros((2, 6))
         q[1, 1] = 0.5
-        checker.collides(q)
-        checker.check_paths(q[0], q[1])
-        checker.paths_collide(q[0], q)
-        checker.paths_collide(q, q[::-1])
+        if configurations:
+            checker.collides(q)
+        if paths:
+            checker.check_paths(q[0], q[1])
+            checker.paths_collide(q[0], q)
+            checker.paths_collide(q, q[::-1])
 
 
 if __name__ == "__main__":

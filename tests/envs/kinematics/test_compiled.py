@@ -221,6 +221,51 @@ def test_a_new_process_loads_the_compiled_driver_from_disk():
     assert reports[1]["hits"] == 1 and reports[1]["misses"] == 0, reports
 
 
+_KERNEL_MODULE = """
+def scaled(x):
+    return 3.0 * x
+"""
+
+
+def _load_copy(folder: Path, name: str, text: str = _KERNEL_MODULE):
+    # A kernel module at its own place, imported as a module of its own name.
+    import importlib.util
+
+    folder.mkdir(parents=True)
+    path = folder / "kernel.py"
+    path.write_text(text)
+    spec = importlib.util.spec_from_file_location(name, path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_cache_serves_the_same_sources_wherever_they_lie(tmp_path):
+    # Two installs of one source (another checkout, another venv) share a cache
+    # directory: the second loads what the first compiled, numba's own cache would not.
+    cache = tmp_path / "cache"
+    cache.mkdir()
+    first = _load_copy(tmp_path / "one" / "pkg", "kernel_one")
+    second = _load_copy(tmp_path / "two" / "pkg", "kernel_two")
+    kernels = [compiled_module.cached_njit(module.scaled, cache, path.parent)
+               for module, path in ((first, tmp_path / "one" / "pkg"),
+                                    (second, tmp_path / "two" / "pkg"))]
+    assert kernels[0](2.0) == 6.0
+    assert sum(kernels[0].stats.cache_misses.values()) == 1
+    assert kernels[1](2.0) == 6.0
+    assert sum(kernels[1].stats.cache_hits.values()) == 1
+    assert sum(kernels[1].stats.cache_misses.values()) == 0
+    # The cache sits under the file's path relative to the root it was given.
+    assert Path(kernels[1]._cache._cache_path) == cache / "pkg"
+    # Another text, another stamp: an edited copy compiles afresh.
+    third = _load_copy(tmp_path / "three" / "pkg", "kernel_three",
+                       _KERNEL_MODULE.replace("3.0", "4.0"))
+    edited = compiled_module.cached_njit(third.scaled, cache, tmp_path / "three")
+    assert edited(2.0) == 8.0
+    assert sum(edited.stats.cache_hits.values()) == 0
+
+
 def test_the_cache_goes_where_numba_cache_dir_says(tmp_path, monkeypatch):
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
     package = Path(compiled_module.__file__).parent
