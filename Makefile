@@ -17,7 +17,7 @@ $(STAMP): pyproject.toml
 install: $(STAMP)
 
 # Compiled kernels (numba) land in its on-disk cache once, before parallel processes use them.
-WARM_UP := $(BIN)/python -c "import ikbranch_gym.envs as e, ikbranch_gym.agents.dp as d; e.warm_up(processes=2); d.warm_up()"
+WARM_UP := $(BIN)/ikbranch warm-up
 
 demo: $(STAMP)
 	$(WARM_UP)

@@ -209,6 +209,11 @@ def test_the_wheel_installs_into_a_fresh_venv_with_core_extras_then_trains(tmp_p
     needs = subprocess.run([console, "train", "--help"], capture_output=True, text=True,
                            cwd=user, timeout=300)
     assert needs.returncode == 2 and "ikbranch-gym[train]" in needs.stderr
+    # Compiling ahead of time needs nothing beyond the environments' own packages.
+    ready = subprocess.run([console, "warm-up", "--processes", "1"], capture_output=True,
+                           text=True, cwd=user, timeout=600,
+                           env={**os.environ, "MUJOCO_GL": "egl", **shared})
+    assert ready.returncode == 0 and "kernels ready in" in ready.stdout, ready.stderr
 
     # Then [train] on top. Its packages (torch's CPU build and the rest) are the ones this
     # test session runs on: the fresh venv sees them through a path file, so pip resolves

@@ -7,6 +7,7 @@
     ikbranch sweep     --env … [--algo …] [--seeds 0-4] …             (python -m train.sweep)
     ikbranch aggregate [--root runs/sweep] [--out F]                  (python -m train.aggregate)
     ikbranch export    MODEL.zip --env ID [--out F.npz]              (python -m train.export)
+    ikbranch warm-up   [--processes 2]                                (envs.precompile)
 
 Every subcommand forwards its arguments unchanged to that module's ``main`` (so
 ``ikbranch train --help`` is ``python -m train --help``); the ``python -m`` forms keep
@@ -37,10 +38,13 @@ COMMANDS: dict[str, tuple[str, str]] = {
                   "interval estimates over a sweep (python -m train.aggregate)"),
     "export": ("ikbranch_gym.train.export",
                "a trained model's actor as a numpy-only .npz (python -m train.export)"),
+    "warm-up": ("ikbranch_gym.envs.precompile",
+                "compile every kernel into numba's cache ahead of the first env"),
 }
 
 
-#: subcommand -> the optional dependencies (``pyproject.toml`` extra) it needs.
+#: subcommand -> the optional dependencies (``pyproject.toml`` extra) it needs (warm-up
+#: needs the environments' own only).
 EXTRAS = {"plan": "plan", "train": "train", "evaluate": "train", "demo": "train",
           "sweep": "sweep", "aggregate": "sweep", "export": "train"}
 
@@ -90,7 +94,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _exit_status(importlib.import_module(COMMANDS[command][0]).main(rest))
     except ModuleNotFoundError as error:
         # An optional dependency the command needs (anything but this package itself).
-        if error.name is None or error.name.partition(".")[0] == "ikbranch_gym":
+        if (error.name is None or error.name.partition(".")[0] == "ikbranch_gym"
+                or command not in EXTRAS):
             raise
         print(f"ikbranch {command} needs {error.name!r}, which is not installed: "
               f"pip install 'ikbranch-gym[{EXTRAS[command]}]'", file=sys.stderr)

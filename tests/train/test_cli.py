@@ -23,6 +23,7 @@ FORWARDED = {
     "sweep": ("ikbranch_gym.train.sweep", "usage: python -m train.sweep"),
     "aggregate": ("ikbranch_gym.train.aggregate", "usage: python -m train.aggregate"),
     "export": ("ikbranch_gym.train.export", "usage: ikbranch export"),
+    "warm-up": ("ikbranch_gym.envs.precompile", "usage: ikbranch warm-up"),
 }
 
 
