@@ -5,7 +5,7 @@ another module keeps running the old helper after the helper's file changed. The
 of the collision filter, move pricing, observation assembly and the batched episodes call
 across modules, so they are cached in one directory named by a hash of every module in
 ``KERNEL_SOURCES``: any edit to one of them compiles all of them afresh (``make`` does it
-once, ``ikbranch_gym.warm_up``), and no stale code can be loaded. A test checks that every module
+once, ``ikbranch warm-up``), and no stale code can be loaded. A test checks that every module
 of ``envs`` that compiles kernels is listed (``envs/kinematics`` has its own driver and
 cache, ``envs.kinematics.compiled``). Where the sources lie does not matter
 (``envs.kinematics.compiled.cached_njit``): installs of one version that share a

@@ -356,16 +356,31 @@ def cached_njit(function: Callable, directory: Path, root: Path, **options: Any)
     each kernel once. ``directory`` must be named by a hash of every source its kernels
     are compiled from (:func:`writable_cache`, :func:`source_digest`)."""
     numba = _numba()
+    cache = _portable_cache(str(directory), str(root.resolve()))
+    if cache is None:
+        # numba's own cache, in ``directory`` (NUMBA_CACHE_DIR's setting, read when a
+        # function is decorated: restored at once so other packages keep their caches).
+        saved = numba.config.CACHE_DIR
+        numba.config.CACHE_DIR = str(directory)
+        try:
+            return numba.njit(cache=True, **options)(function)
+        finally:
+            numba.config.CACHE_DIR = saved
     dispatcher = numba.njit(**options)(function)
     # What njit(cache=True) does, with this cache in place of numba's own (FunctionCache).
-    dispatcher._cache = _portable_cache(str(directory), str(root.resolve()))(function)
+    dispatcher._cache = cache(function)
     return dispatcher
 
 
 @functools.cache
-def _portable_cache(directory: str, root: str) -> type:
-    """numba's ``FunctionCache`` with the locator of :func:`cached_njit`."""
+def _portable_cache(directory: str, root: str) -> type | None:
+    """numba's ``FunctionCache`` with the locator of :func:`cached_njit`; None where this
+    numba lacks the parts it is built from (a test then fails: every install compiles)."""
     from numba.core import caching
+
+    if not all(hasattr(caching, name) for name in ("_CacheLocator", "CompileResultCacheImpl",
+                                                   "FunctionCache")):
+        return None
 
     class Locator(caching._CacheLocator):
         def __init__(self, py_func: Callable, py_file: str) -> None:

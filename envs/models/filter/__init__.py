@@ -214,8 +214,8 @@ def _same_model(one: CompiledScene, other: CompiledScene) -> bool:
 def warm_up(configurations: bool = True, paths: bool = True) -> None:
     """Compile (or load from numba's on-disk cache) every kernel with the argument types
     the checker passes, on a small model: ``make`` runs it once before the tests, so
-    parallel test processes load the cache instead of compiling each. The configuration
-    and the path kernels share no caller: two processes may compile one each."""
+    parallel test processes load the cache instead of compiling each. Neither the
+    configuration nor the path kernels call the other: two processes may compile one each."""
     from ..collision import CollisionChecker
     from ..model import build_model
 

@@ -266,6 +266,23 @@ def test_the_cache_serves_the_same_sources_wherever_they_lie(tmp_path):
     assert sum(edited.stats.cache_hits.values()) == 0
 
 
+def test_without_numbas_cache_parts_the_kernels_keep_numbas_own_cache(tmp_path, monkeypatch):
+    # A numba without the parts the portable cache is built from: its own cache, still in
+    # the directory given, and numba's setting as it was.
+    import numba
+
+    monkeypatch.setattr(compiled_module, "_portable_cache", lambda directory, root: None)
+    cache = tmp_path / "cache"
+    cache.mkdir()
+    module = _load_copy(tmp_path / "one" / "pkg", "kernel_fallback")
+    before = numba.config.CACHE_DIR
+    kernel = compiled_module.cached_njit(module.scaled, cache, tmp_path / "one")
+    assert numba.config.CACHE_DIR == before
+    assert kernel(2.0) == 6.0
+    assert Path(kernel._cache._cache_path).parent == cache
+    assert any(Path(kernel._cache._cache_path).glob("kernel.scaled-*.nbi"))
+
+
 def test_the_cache_goes_where_numba_cache_dir_says(tmp_path, monkeypatch):
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
     package = Path(compiled_module.__file__).parent
