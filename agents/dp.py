@@ -22,12 +22,15 @@ for edges that could still lie on the best path.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
+import numba
 import numpy as np
-from numba import njit
 
+from ikbranch_gym.envs.kinematics.compiled import cached_njit, source_digest, writable_cache
 from ikbranch_gym.envs.moves import TaskMoves
 
 from .base import Baseline, first_within
@@ -36,6 +39,20 @@ Edges = tuple[np.ndarray, np.ndarray]  # reward (R, K), terminal (R, K)
 
 #: Collision status of an edge in :class:`LazyLadder`.
 UNKNOWN, FREE, COLLIDES = -1, 0, 1
+
+_HERE = Path(__file__).resolve().parent
+
+
+def cache_directory() -> Path | None:
+    """Where this package's kernel is cached: a directory named by the hash of its sources
+    (as the env's kernels, ``envs.kinematics.compiled.cached_njit``)."""
+    return writable_cache(f"numba-{source_digest(_HERE)}", _HERE / "__pycache__")
+
+
+def _compiled(function: Callable) -> Any:
+    directory = cache_directory()
+    return numba.njit(function) if directory is None else cached_njit(function, directory,
+                                                                       _HERE)
 
 
 def ladder_q_tables(edges: Sequence[Edges], allowed: np.ndarray) -> list[np.ndarray]:
@@ -61,7 +78,7 @@ def ladder_q_tables(edges: Sequence[Edges], allowed: np.ndarray) -> list[np.ndar
     return tables
 
 
-@njit(cache=True)
+@_compiled
 def _backward(
     reward: np.ndarray, terminal: np.ndarray, allowed: np.ndarray, q: np.ndarray
 ) -> None:

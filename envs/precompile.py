@@ -32,7 +32,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     envs.warm_up(processes=args.processes)
     dp.warm_up()
     print(f"kernels ready in {time.perf_counter() - start:.1f} s, cached in "
-          f"{jit.cache_directory()} and {compiled.cache_directory()}")
+          f"{jit.cache_directory()}, {compiled.cache_directory()} and "
+          f"{dp.cache_directory()}")
     return 0
 
 

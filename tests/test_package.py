@@ -141,13 +141,16 @@ def _copy_sources(target: Path) -> Path:
 
 
 def _shared_kernel_cache(root: Path) -> Path:
-    """A ``NUMBA_CACHE_DIR`` holding this session's kernel caches (the env's and the IK
-    driver's), linked: whatever sources share them find their kernels there."""
+    """A ``NUMBA_CACHE_DIR`` holding this session's kernel caches (the env's, the IK
+    driver's and the DP oracle's), linked: whatever sources share them find their kernels
+    there."""
+    from ikbranch_gym.agents import dp
     from ikbranch_gym.envs import jit
     from ikbranch_gym.envs.kinematics import compiled
 
     root.mkdir()
-    for directory in (jit.cache_directory(), compiled.cache_directory()):
+    for directory in (jit.cache_directory(), compiled.cache_directory(),
+                      dp.cache_directory()):
         assert directory is not None, "no writable kernel cache in this session"
         (root / Path(directory).name).symlink_to(directory)
     return root
@@ -192,7 +195,9 @@ def test_the_wheel_installs_into_a_fresh_venv_with_core_extras_then_trains(tmp_p
               library() is not None)
         print(sorted(m for m in ("torch", "stable_baselines3", "ray", "yaml", "coacd",
                                  "matplotlib", "rliable", "pandas") if m in sys.modules))
-        kernels = (stepping.survey, stepping.advance, compiled_solve_poses())
+        from ikbranch_gym.agents import dp
+        dp.warm_up()
+        kernels = (stepping.survey, stepping.advance, compiled_solve_poses(), dp._backward)
         print(*(sum(sum(getattr(kernel.stats, kind).values()) for kernel in kernels)
                 for kind in ("cache_hits", "cache_misses")))
     """, cwd=user, python=python, env=shared)
@@ -201,7 +206,7 @@ def test_the_wheel_installs_into_a_fresh_venv_with_core_extras_then_trains(tmp_p
     version = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["version"]
     assert first.split() == ["user", "envs", version, "True", "True"]
     assert second == "[]"
-    assert third.split() == ["3", "0"], "the install compiled kernels its sources share"
+    assert third.split() == ["4", "0"], "the install compiled kernels its sources share"
     for name in ("torch", "stable_baselines3", "ray", "coacd"):
         probe = _python(f"import {name}", cwd=user, python=python)
         assert probe.returncode != 0, f"{name} was installed without its extra"

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pytest
 
+from ikbranch_gym.agents import dp
 from ikbranch_gym.envs import jit, precompile
 from ikbranch_gym.envs.kinematics import compiled
 from ikbranch_gym.train import cli
@@ -13,7 +14,8 @@ def test_warm_up_readies_the_kernels_and_names_their_caches(capsys):
     assert cli.main(["warm-up", "--processes", "1"]) == 0
     out = capsys.readouterr().out
     assert out.startswith("kernels ready in ")
-    assert str(jit.cache_directory()) in out and str(compiled.cache_directory()) in out
+    for directory in (jit.cache_directory(), compiled.cache_directory(), dp.cache_directory()):
+        assert str(directory) in out
 
 
 def test_warm_up_takes_one_or_two_processes(capsys):
