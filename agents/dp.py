@@ -27,10 +27,9 @@ from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
-import numba
 import numpy as np
 
-from ikbranch_gym.envs.kinematics.compiled import cached_njit, source_digest, writable_cache
+from ikbranch_gym.envs.kinematics import compiled
 from ikbranch_gym.envs.moves import TaskMoves
 
 from .base import Baseline, first_within
@@ -46,13 +45,11 @@ _HERE = Path(__file__).resolve().parent
 def cache_directory() -> Path | None:
     """Where this package's kernel is cached: a directory named by the hash of its sources
     (as the env's kernels, ``envs.kinematics.compiled.cached_njit``)."""
-    return writable_cache(f"numba-{source_digest(_HERE)}", _HERE / "__pycache__")
+    return compiled.cache_directory(_HERE)
 
 
 def _compiled(function: Callable) -> Any:
-    directory = cache_directory()
-    return numba.njit(function) if directory is None else cached_njit(function, directory,
-                                                                       _HERE)
+    return compiled.cached_njit(function, cache_directory(), _HERE)
 
 
 def ladder_q_tables(edges: Sequence[Edges], allowed: np.ndarray) -> list[np.ndarray]:

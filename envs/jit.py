@@ -20,8 +20,6 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import numba
-
 from ikbranch_gym.envs.kinematics.compiled import cached_njit, writable_cache
 
 _ROOT = Path(__file__).resolve().parent
@@ -59,6 +57,5 @@ def njit(function: Callable | None = None, **options: Any) -> Any:
     if function is None:
         return functools.partial(njit, **options)
     directory = cache_directory()
-    if directory is None:
-        return numba.njit(**options)(function)
-    return cached_njit(function, Path(directory), _ROOT, **options)
+    return cached_njit(function, None if directory is None else Path(directory), _ROOT,
+                       **options)

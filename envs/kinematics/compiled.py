@@ -320,10 +320,10 @@ def source_digest(package: Path) -> str:
     return digest.hexdigest()[:16]
 
 
-def cache_directory() -> Path | None:
-    """Where the compiled driver is cached: a directory named by the hash of this package's
-    sources (:func:`writable_cache`)."""
-    here = Path(__file__).resolve().parent
+def cache_directory(package: Path | None = None) -> Path | None:
+    """Where the kernels of ``package`` (default: this one, the compiled driver's) are
+    cached: a directory named by the hash of its sources (:func:`writable_cache`)."""
+    here = Path(__file__).resolve().parent if package is None else package
     return writable_cache(f"numba-{source_digest(here)}", here / "__pycache__")
 
 
@@ -344,10 +344,11 @@ def writable_cache(name: str, beside: Path) -> Path | None:
     return None
 
 
-def cached_njit(function: Callable, directory: Path, root: Path, **options: Any) -> Any:
+def cached_njit(function: Callable, directory: Path | None, root: Path,
+                **options: Any) -> Any:
     """``numba.njit(**options)(function)`` cached on disk in ``directory``, under the path
     of the function's source file relative to ``root``, and stamped with a hash of that
-    file's text.
+    file's text; not cached where ``directory`` is None (none is writable).
 
     numba names a cache by the absolute path of the source, so a second checkout or virtual
     environment of the very same sources would compile everything again (minutes). Here
@@ -356,6 +357,8 @@ def cached_njit(function: Callable, directory: Path, root: Path, **options: Any)
     each kernel once. ``directory`` must be named by a hash of every source its kernels
     are compiled from (:func:`writable_cache`, :func:`source_digest`)."""
     numba = _numba()
+    if directory is None:
+        return numba.njit(**options)(function)
     cache = _portable_cache(str(directory), str(root.resolve()))
     if cache is None:
         # numba's own cache, in ``directory`` (NUMBA_CACHE_DIR's setting, read when a
@@ -373,6 +376,12 @@ def cached_njit(function: Callable, directory: Path, root: Path, **options: Any)
 
 
 @functools.cache
+def _text_hash(path: str) -> str:
+    """sha256 of a source file's text, read once per process (a module holds many kernels)."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+@functools.cache
 def _portable_cache(directory: str, root: str) -> type | None:
     """numba's ``FunctionCache`` with the locator of :func:`cached_njit`; None where this
     numba lacks the parts it is built from (a test then fails: every install compiles)."""
@@ -387,7 +396,7 @@ def _portable_cache(directory: str, root: str) -> type | None:
             self._lineno = py_func.__code__.co_firstlineno
             relative = Path(py_file).resolve().relative_to(root)
             self._path = str(Path(directory, *relative.parent.parts))
-            self._stamp = hashlib.sha256(Path(py_file).read_bytes()).hexdigest()
+            self._stamp = _text_hash(py_file)
 
         def get_cache_path(self) -> str:
             return self._path
@@ -429,10 +438,7 @@ def compiled_solve_poses() -> Callable:
         numba.extending.register_jitable(function)
     for helper in _FINISH_HELPERS:
         numba.extending.register_jitable(helper)
-    directory = cache_directory()
-    if directory is None:
-        return numba.njit(solve_poses)
-    return cached_njit(solve_poses, directory, Path(__file__).parent)
+    return cached_njit(solve_poses, cache_directory(), Path(__file__).parent)
 
 
 def driver_arguments(arm: Arm) -> tuple[Any, ...]:
