@@ -32,6 +32,11 @@ waypoint asks many of them.
 
 Everything lives in one :class:`Episodes` object (a numba StructRef: one argument to
 unbox, where its ~30 arrays would cost several µs a call).
+
+A helper with one call site is inlined into it (``inline="always"``): compiled on its own,
+each would be a library of its own holding re-optimised copies of everything it calls
+(docs/models.md, "Compile time"). :func:`_onward` is not: the tests call it to read the
+onward travel before it is rounded.
 """
 
 from __future__ import annotations
@@ -217,7 +222,7 @@ def _check(bound, scenes, first, last, steps, hits):
         hits[i] = index[i] >= 0
 
 
-@njit
+@njit(inline="always")
 def _copy_verdicts(ep, bound, rows, first, last, steps, scenes, hits):
     """:func:`_check` of the paths of ``rows`` where their turn copies share it: paths
     whose ends differ by whole turns of revolute joints (the same shift at both ends)
@@ -362,7 +367,7 @@ def survey(ep, bound, rows):
     _observe(ep, rows, live, collision, onward, ahead)
 
 
-@njit
+@njit(inline="always")
 def _slot_paths(ep, bound, live):
     """(len(live), K): the move from each row's configuration to each valid branch of its
     next waypoint collides (its path; at a free start the branch's own configuration)."""
@@ -391,7 +396,7 @@ def _slot_paths(ep, bound, live):
     return collision
 
 
-@njit
+@njit(inline="always")
 def _least_travel_paths(ep, bound, live):
     """:func:`_slot_paths` where the batch checks ``CHECKED_MOVES`` = n moves, and the
     prices of ``live`` rows: per row its allowed moves in order of least travel (ties: the
@@ -427,7 +432,7 @@ def _least_travel_paths(ep, bound, live):
     return collision
 
 
-@njit
+@njit(inline="always")
 def _travel_order(ep, live, collision):
     """Per line of ``live``: its allowed moves by least priced travel (ties: the lower
     branch) in ``order[line, :size[line]]``, each marked checked until found otherwise; at
@@ -481,7 +486,7 @@ def _targets(ep, rows, branches):
     return out
 
 
-@njit
+@njit(inline="always")
 def _check_taken(ep, bound, rows, actions):
     """Moves among ``rows``' actions that :func:`survey` left unchecked: their paths are
     checked (one kernel call), and a row whose move collides is priced again."""
@@ -589,7 +594,7 @@ def _onward(ep, bound, live, collision, onward, ahead):
         ahead[inner[m]] = out[m]
 
 
-@njit
+@njit(inline="always")
 def _least_two_moves(ep, bound, rows, waypoints, pending, costs):
     """The search of :func:`_onward`'s layers over two moves, the same values: per line m
     and branch a of waypoint w = ``waypoints[m]`` where ``pending[m, a]``, the least
@@ -648,7 +653,7 @@ def _least_two_moves(ep, bound, rows, waypoints, pending, costs):
     return out
 
 
-@njit
+@njit(inline="always")
 def _cost_picks(ep, bound, rows, lines, middle, mid, far, targets, costs, need, estimate,
                 known):
     """The cost of every pick of :func:`_least_two_moves` to cost (``need[i, c]``, branch
@@ -697,7 +702,7 @@ def _rows_of(configurations, lines, branches):
     return out
 
 
-@njit
+@njit(inline="always")
 def _second_moves(ep, rows, waypoints, costs):
     """The second moves of :func:`_least_two_moves`, for the lines whose task has
     waypoint w + 2 (``lines``): their waypoints w + 1 (``middle``), the branches of both
@@ -840,7 +845,7 @@ def _moves(ep, rows, waypoints, targets, pending):
     return here, there, travel
 
 
-@njit
+@njit(inline="always")
 def _costed_moves(ep, rows, waypoints, pending, costs):
     """:func:`_moves` into the free branches of the waypoint after with a finite cost, the
     travel of each plus the cost of its end ``costs[m, b]``."""
