@@ -338,12 +338,18 @@ def build_policy(spec: str, env: gym.Env, seed: int) -> tuple[str, Policy]:
 
 
 # ------------------------------------------------------------------------------- gaps
-def iqm(values: np.ndarray) -> float:
-    """Interquartile mean: the mean of the values left after the lowest and the highest
-    ``floor(n / 4)`` are dropped (``scipy.stats.trim_mean(values, 0.25)``, rliable's IQM)."""
-    ordered = np.sort(np.asarray(values, dtype=float).ravel())
-    cut = len(ordered) // 4
-    return float(ordered[cut:len(ordered) - cut].mean())
+def iqm(values: ArrayLike) -> float:
+    """Interquartile mean of all entries: the mean of the values left after the lowest and
+    the highest ``floor(n / 4)`` are dropped. It is rliable's IQM
+    (``scipy.stats.trim_mean(values, 0.25, axis=None)``) to the bit: the same partition and
+    the same mean, without scipy's handling of its arguments, which took most of the time
+    of a sweep's bootstrap intervals (about 0.5 ms a call, 2,000 calls an interval)."""
+    flat = np.asarray(values, dtype=float).ravel()
+    if flat.size == 0:
+        raise ValueError("the interquartile mean of no values")
+    cut = flat.size // 4
+    kept = np.partition(flat, (cut, flat.size - cut - 1))[cut:flat.size - cut]
+    return float(kept.mean())
 
 
 def mean_gap(returns: ArrayLike, oracle_returns: ArrayLike) -> float | None:

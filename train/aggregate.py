@@ -42,7 +42,7 @@ from typing import Any
 import numpy as np
 
 from ikbranch_gym.agents import DPOracle, PaperRule, RandomBranch, RecedingDP
-from ikbranch_gym.agents.evaluation import mean_gap, task_gaps
+from ikbranch_gym.agents.evaluation import iqm, mean_gap, task_gaps
 from ikbranch_gym.train.sweep import env_name
 
 #: Bootstrap resamples for every interval.
@@ -105,7 +105,7 @@ def _curves(root: Path, env_id: str, algo: str, seeds: list[int]) -> dict[str, A
         return None
     length = min(len(t) for t, _ in rows)
     steps, returns = rows[0][0][:length], np.array([r[:length] for _, r in rows])
-    estimates = [_estimate({"x": returns[:, [i]]}, _iqm)["x"] for i in range(length)]
+    estimates = [_estimate({"x": returns[:, [i]]}, iqm)["x"] for i in range(length)]
     return {"timesteps": steps.tolist(), "iqm": [e[0] for e in estimates],
             "low": [e[1] for e in estimates], "high": [e[2] for e in estimates]}
 
@@ -129,12 +129,6 @@ def probability_of_improvement(scores_x: np.ndarray, scores_y: np.ndarray) -> fl
     ties = (np.abs(difference) <= SCORE_TIE).sum(axis=(0, 1))
     per_task = (greater + 0.5 * ties) / (scores_x.shape[0] * scores_y.shape[0])
     return float(np.mean(per_task))
-
-
-def _iqm(x: np.ndarray) -> float:
-    from rliable import metrics
-
-    return float(metrics.aggregate_iqm(x))
 
 
 def summarise(root: Path, env_id: str, entry: dict[str, Any]) -> dict[str, Any]:
@@ -180,14 +174,14 @@ def summarise(root: Path, env_id: str, entry: dict[str, Any]) -> dict[str, Any]:
             "success": _estimate({"x": run["successes"]}, metrics.aggregate_mean)["x"],
             # The IQM gap over the tasks the oracle's return gives a scale (as in the
             # evaluation table).
-            "gap": (_estimate({"x": task_gaps(returns, oracle)}, _iqm)["x"]
+            "gap": (_estimate({"x": task_gaps(returns, oracle)}, iqm)["x"]
                     if (oracle != 0.0).any() else None),
             "mean_gap": mean_gap(returns, oracle),
             "mean_return": float(returns.mean()),
             "decision_ms": float(run["decision_ms"].mean())}
         if informative.any():
             score = (returns[:, informative] - random[informative]) / span[informative]
-            row["score"] = _estimate({"x": score}, _iqm)["x"]
+            row["score"] = _estimate({"x": score}, iqm)["x"]
             # How often the policy attains the optimum (score 1 up to rounding): where a
             # rival always does, no policy can beat it (P(improvement) at most 0.5).
             row["optimal"] = float(np.mean(score >= 1.0 - 1e-9))

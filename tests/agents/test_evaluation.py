@@ -64,10 +64,17 @@ def test_gaps_without_a_scale_are_none_or_zero():
         gaps([1.0, 2.0], [1.0])
 
 
-@pytest.mark.parametrize("n", [1, 2, 3, 4, 5, 7, 8, 13, 50])
-def test_iqm_is_scipys_quarter_trimmed_mean(n):
-    values = np.random.default_rng(n).normal(size=n) ** 3  # skewed: the trim matters
-    assert iqm(values) == pytest.approx(trim_mean(values, 0.25), rel=1e-12)
+@pytest.mark.parametrize("shape", [(1,), (2,), (3,), (4,), (5,), (7,), (8,), (13,), (50,),
+                                   (3, 20), (5, 200), (10, 1)])
+def test_iqm_is_rliables_to_the_bit(shape):
+    from rliable import metrics
+
+    rng = np.random.default_rng(sum(shape))
+    values = rng.normal(size=shape) ** 3  # skewed: the trim matters
+    values[rng.random(shape) < 0.2] = 1.0  # ties at the cuts
+    assert iqm(values) == trim_mean(values.ravel(), 0.25) == metrics.aggregate_iqm(values)
+    with pytest.raises(ValueError, match="no values"):
+        iqm(np.empty((0, 3)))
 
 
 def test_old_results_gain_both_gaps():

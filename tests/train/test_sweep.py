@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from ikbranch_gym.agents.evaluation import iqm
 from ikbranch_gym.train import aggregate, publish, sweep
 
 TINY = ['--hyperparams', '{"n_steps": 32, "batch_size": 32, "n_epochs": 1, '
@@ -415,10 +416,10 @@ def test_intervals_are_reproducible_whatever_numpys_global_state():
     # rliable resamples with numpy's global generator; the estimates must not depend on it.
     scores = np.random.default_rng(0).normal(size=(4, 30))
     np.random.seed(1)  # noqa: NPY002 (the global generator rliable uses)
-    first = aggregate._estimate({"x": scores}, aggregate._iqm)
+    first = aggregate._estimate({"x": scores}, iqm)
     np.random.seed(2)  # noqa: NPY002
     outer = np.random.get_state()  # noqa: NPY002
-    second = aggregate._estimate({"x": scores}, aggregate._iqm)
+    second = aggregate._estimate({"x": scores}, iqm)
     assert first == second
     after = np.random.get_state()  # noqa: NPY002
     assert all(np.array_equal(a, b) for a, b in zip(outer, after, strict=True))
