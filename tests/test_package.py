@@ -170,8 +170,8 @@ def test_the_wheel_installs_into_a_fresh_venv_with_core_extras_then_trains(tmp_p
     venv = tmp_path / "venv"
     subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=300)
     python, pip = str(venv / "bin" / "python"), [str(venv / "bin" / "python"), "-m", "pip"]
-    subprocess.run([*pip, "install", "--quiet", str(wheel)], check=True, capture_output=True,
-                   timeout=600)
+    subprocess.run([*pip, "install", "--quiet", "--no-compile", str(wheel)], check=True,
+                   capture_output=True, timeout=600)
     user = _user_folder(tmp_path)
     # The installed sources are this checkout's: with the test session's kernel caches
     # shared, the install loads every kernel instead of compiling it (three minutes), and
