@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import pytest
 
-#: Tests that take minutes on their own (a fresh venv compiles every kernel) run first:
-#: with ``-n 2`` one worker starts on them while the other takes the rest, instead of
-#: the whole run waiting on them at its end.
+#: The longest tests (a fresh venv and its installs; a Ray cluster and its trials) run
+#: first: with ``-n 2`` one worker starts on them while the other takes the rest, instead
+#: of the whole run waiting on one of them at its end.
 FIRST = frozenset({
     "tests/test_package.py::test_the_wheel_installs_into_a_fresh_venv_with_core_extras_then_trains",
+    "tests/train/test_sweep.py::test_tiny_sweep_writes_run_directories_and_resumes",
 })
 
 
