@@ -526,6 +526,10 @@ def _own_levers(model: mujoco.MjModel, data: mujoco.MjData, geoms: np.ndarray,
     rigidly together). A joint drops out that spins a geom about an axis of symmetry of
     its own, or turns it about one of the other's (moving) geom, fixed to that geom's body
     in every configuration."""
+    # Both tests depend on one joint and one geom only, and a moving geom meets many
+    # partners (every obstacle slot): each (joint, geom) is decided once.
+    spins: dict[tuple[int, int], bool] = {}
+    turns: dict[tuple[int, int], bool] = {}
     lever_own = np.zeros((len(pair_a), model.njnt))
     for k, (a, b) in enumerate(zip(pair_a, pair_b, strict=True)):
         if slot_static[b]:
@@ -535,8 +539,16 @@ def _own_levers(model: mujoco.MjModel, data: mujoco.MjData, geoms: np.ndarray,
             lever_own[k] = np.where(only_a, levers[a], 0.0) + np.where(only_b, levers[b], 0.0)
         for joint in np.flatnonzero(lever_own[k]).tolist():
             mover, other = (a, b) if only_a[joint] else (b, a)
-            if (_spins(model, data, joint, int(geoms[mover]))
-                    or _turns_around(model, data, joint, int(geoms[other]))):
+            spin = (joint, int(geoms[mover]))
+            if spin not in spins:
+                spins[spin] = _spins(model, data, *spin)
+            if spins[spin]:
+                lever_own[k, joint] = 0.0
+                continue
+            turn = (joint, int(geoms[other]))
+            if turn not in turns:
+                turns[turn] = _turns_around(model, data, *turn)
+            if turns[turn]:
                 lever_own[k, joint] = 0.0
     lever_own[:, dof:] = 0.0
     return np.ascontiguousarray(lever_own.T)
