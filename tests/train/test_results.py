@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from ikbranch_gym.agents import DPOracle
-from ikbranch_gym.agents.evaluation import ORACLE, run_episode, summarise
+from ikbranch_gym.agents.evaluation import ORACLE, Episode, run_episode, summarise
 from ikbranch_gym.agents.sb3 import SB3Policy
 from ikbranch_gym.envs.models import CollisionChecker
 from ikbranch_gym.envs.seeds import TEST_SEED
@@ -81,35 +81,48 @@ def test_the_published_oracle_returns_are_the_enumerated_optimum(path):
         assert record["policies"][ORACLE]["returns"][e] == pytest.approx(best, rel=0, abs=1e-9)
 
 
-def judged_success(env: gym.Env, policy: SB3Policy, seed: int, checker_backend: str) -> bool:
-    """Whether the policy's episode on task ``seed`` succeeds, judged from its moves alone
-    (not the env's flags): every waypoint reached, in turn, by a configuration inside the
-    limits whose fk is the waypoint's pose, and no move's path closer than the env's
-    clearance to anything, by a collision checker of its own (``checker_backend``)."""
-    obs, _ = env.reset(seed=seed)
+class MoveRecorder(gym.Wrapper):
+    """Records every step's move of the env below: (start, end configuration, action)."""
+
+    def reset(self, **kwargs):
+        self.moves: list[tuple[np.ndarray, np.ndarray, int]] = []
+        return super().reset(**kwargs)
+
+    def step(self, action):
+        start = self.unwrapped.q.copy()
+        out = super().step(action)
+        self.moves.append((start, self.unwrapped.q.copy(), int(action)))
+        return out
+
+
+def judged_episode(env: gym.Env, policy: SB3Policy, seed: int,
+                   checker_backend: str) -> tuple[Episode, bool]:
+    """The policy's episode on task ``seed`` (``run_episode``), and whether it succeeds,
+    judged from its moves alone (not the env's flags): every waypoint reached, in turn, by
+    a configuration inside the limits whose fk is the waypoint's pose, and no move's path
+    closer than the env's clearance to anything, by a collision checker of its own
+    (``checker_backend``)."""
+    recorder = MoveRecorder(env)
+    episode = run_episode(policy, recorder, seed)
     base = env.unwrapped
     # The task's poses as the env solves them: of the fk frame in the base frame (a task in
-    # a cell, of a tool's TCP, is mapped there at reset; envs/task_frame.py).
+    # a cell, of a tool's TCP, is mapped there at reset; envs/task_frame.py). The task and
+    # the episode's scene stay after the episode.
     arm, poses = base.arm, base.task.poses
+    if len(recorder.moves) != len(poses):
+        return episode, False
     checker = CollisionChecker(base.model, dof=arm.dof, resolution=base.pricer.checker.resolution,
                                backend=checker_backend)
-    reached, done = 0, False
-    while not done:
-        start = base.q.copy()
-        action, _ = policy.predict(obs, action_masks=base.action_masks())
-        obs, _, terminated, truncated, _ = env.step(int(action))
-        done = terminated or truncated
-        end, target = base.q.copy(), poses[reached]
+    for (start, end, action), target in zip(recorder.moves, poses, strict=True):
         if hasattr(arm, "branch_pose"):  # a free tool axis: the pose turned by the rung's
-            target = arm.branch_pose(target, int(action))  # tool orientation
+            target = arm.branch_pose(target, action)  # tool orientation
         pose = arm.fk(end)
         if arm.target == "position":
             pose, target = pose[:3, 3], target[:3, 3]
         if (np.abs(pose - target).max() > POSE_TOL or not arm.within_limits(end)
                 or checker.check_path(start, end).collides):
-            return False
-        reached += 1
-    return reached == len(poses)
+            return episode, False
+    return episode, True
 
 
 @pytest.mark.parametrize(("record", "algo"), published_models())
@@ -121,7 +134,7 @@ def test_a_models_published_success_rate_is_what_its_episodes_achieve(record, al
     name = published_name(record, algo)
     env = gym.make(record["env"])
     policy = SB3Policy.load(name, env)
-    successes = [judged_success(env, policy, TEST_SEED + e, "loop")
+    successes = [judged_episode(env, policy, TEST_SEED + e, "loop")[1]
                  for e in range(record["episodes"])]
     published = record["policies"][name.removesuffix(".zip")]["success_rate"]
     assert np.mean(successes) == pytest.approx(published, rel=0, abs=1e-12)

@@ -10,7 +10,6 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from ikbranch_gym.agents.evaluation import run_episode
 from ikbranch_gym.agents.sb3 import SB3Policy
 from ikbranch_gym.train.publish import (
     MODELS,
@@ -22,7 +21,7 @@ from ikbranch_gym.train.publish import (
     readme_summary,
     render,
 )
-from tests.train.test_results import judged_success
+from tests.train.test_results import judged_episode
 
 AGGREGATE = SWEEP_RESULTS / "aggregate.json"
 #: Episodes replayed per model (of the 200 published): the first ones, in order.
@@ -91,31 +90,23 @@ def test_the_readme_shows_the_published_aggregate():
 
 @pytest.mark.regression
 @pytest.mark.parametrize(("env_id", "algo"), published_rows())
-def test_a_published_model_replays_its_first_episodes(env_id, algo, monkeypatch):
-    # A snapshot (the stored returns came from this code): a change in what the env, the
-    # checker or the model loader computes shows up here. To rounding, not bit for bit:
-    # the returns were stored when batches went through numpy IK solvers, whose arctan2
-    # and arccos differ from the C library's (what the one compiled IK calls since) in the
-    # last bit; replayed returns moved by at most 9.3e-14. A changed decision moves a
-    # return by a whole move's price.
+def test_a_published_model_replays_its_first_episodes_and_their_successes_hold(
+        env_id, algo, monkeypatch):
+    # The returns are a snapshot (the stored returns came from this code): a change in
+    # what the env, the checker or the model loader computes shows up here. To rounding,
+    # not bit for bit: the returns were stored when batches went through numpy IK solvers,
+    # whose arctan2 and arccos differ from the C library's (what the one compiled IK calls
+    # since) in the last bit; replayed returns moved by at most 9.3e-14. A changed
+    # decision moves a return by a whole move's price.
+    # The successes are judged from the same episodes' moves by a collision checker of its
+    # own (the loop backend, not the env's compiled one): the published per-episode
+    # successes must hold up.
     monkeypatch.chdir(MODELS.parent)
     trial = _trial(env_id, algo)
     env = gym.make(env_id, **trial["env_kwargs"])
     policy = SB3Policy.load(trial["model"], env)
     for e in range(REPLAYED):
-        episode = run_episode(policy, env, trial["task_seed"] + e)
+        episode, judged = judged_episode(env, policy, trial["task_seed"] + e, "loop")
         assert episode.reward == pytest.approx(trial["policy"]["returns"][e], rel=0,
                                                abs=1e-9), e
-
-
-@pytest.mark.parametrize(("env_id", "algo"), published_rows())
-def test_a_published_models_successes_are_what_its_moves_achieve(env_id, algo, monkeypatch):
-    # Judged from the moves by a collision checker of its own (the loop backend, not the
-    # env's compiled one): the published per-episode successes must hold up.
-    monkeypatch.chdir(MODELS.parent)
-    trial = _trial(env_id, algo)
-    env = gym.make(env_id, **trial["env_kwargs"])
-    policy = SB3Policy.load(trial["model"], env)
-    judged = [judged_success(env, policy, trial["task_seed"] + e, "loop")
-              for e in range(REPLAYED)]
-    assert judged == trial["policy"]["successes"][:REPLAYED]
+        assert judged == trial["policy"]["successes"][e], e
