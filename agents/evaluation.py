@@ -347,9 +347,17 @@ def iqm(values: ArrayLike) -> float:
     flat = np.asarray(values, dtype=float).ravel()
     if flat.size == 0:
         raise ValueError("the interquartile mean of no values")
-    cut = flat.size // 4
-    kept = np.partition(flat, (cut, flat.size - cut - 1))[cut:flat.size - cut]
-    return float(kept.mean())
+    return float(iqm_rows(flat[None])[0])
+
+
+def iqm_rows(samples: np.ndarray) -> np.ndarray:
+    """(R,) :func:`iqm` of every entry of each of ``samples`` (R, …) at once (R bootstrap
+    resamples): each row partitioned and averaged as one, so every value is the bits
+    :func:`iqm` gives that row."""
+    flat = samples.reshape(len(samples), -1)
+    n = flat.shape[1]
+    cut = n // 4
+    return np.partition(flat, (cut, n - cut - 1), axis=1)[:, cut:n - cut].mean(axis=1)
 
 
 def mean_gap(returns: ArrayLike, oracle_returns: ArrayLike) -> float | None:

@@ -42,40 +42,81 @@ from typing import Any
 import numpy as np
 
 from ikbranch_gym.agents import DPOracle, PaperRule, RandomBranch, RecedingDP
-from ikbranch_gym.agents.evaluation import iqm, mean_gap, task_gaps
+from ikbranch_gym.agents.evaluation import iqm_rows, mean_gap, task_gaps
 from ikbranch_gym.train.sweep import env_name
 
 #: Bootstrap resamples for every interval.
 REPS = 2000
+#: Two-sided interval coverage, and its tails as arch computes them (rliable's default).
+SIZE = 0.95
+_TAILS = [100 * ((1.0 - SIZE) / 2), 100 * (1.0 - (1.0 - SIZE) / 2)]
+#: Resamples evaluated in one batch (bounds the memory of a pairwise comparison).
+_BATCH = 250
 ORACLE, RANDOM = DPOracle.name, RandomBranch.name
 #: What learned policies are compared with (probability of improvement).
 RIVALS = (PaperRule.name, RecedingDP.name)
 
+#: A statistic of a batch of bootstrap resamples: (R, runs, tasks) → (R,), or for a
+#: comparison two batches (R, runs_x, tasks), (R, runs_y, tasks) → (R,).
+Statistic = Callable[..., np.ndarray]
 
-def _estimate(scores: dict[str, Any], func: Callable[..., float],
-              seed: int = 0) -> dict[str, tuple[float, float, float]]:
-    """{name: (point, low, high)} of ``func`` with rliable's stratified bootstrap, tasks
-    resampled too: the held-out tasks are a sample of the task distribution, not a fixed
-    benchmark suite."""
-    import warnings
 
-    from rliable import library as rly
+def _estimate(scores: np.ndarray | tuple[np.ndarray, np.ndarray], statistic: Statistic,
+              seed: int = 0) -> tuple[float, float, float]:
+    """(point, low, high) of ``statistic`` on ``scores`` (runs, tasks), or on a pair of
+    them (a comparison), with the 95 % percentile interval of rliable's stratified
+    bootstrap: one array resampled over runs within each task and over tasks
+    (``task_bootstrap``: the held-out tasks are a sample of the task distribution, not a
+    fixed benchmark suite), a pair each over its runs within each task (rliable's
+    ``StratifiedIndependentBootstrap``, which takes no task resampling).
 
-    # rliable's StratifiedBootstrap draws its resampling indices from numpy's *global*
-    # generator (np.random.choice), whatever ``random_state`` says: seed that generator
-    # for the call (and put its state back), so the same scores give the same intervals.
+    It is ``rliable.library.get_interval_estimates(…, reps=REPS, task_bootstrap=True)``
+    to the bit (tested), computed in batches: the same resampling indices, drawn by the
+    same calls in the same order from numpy's *global* generator (which rliable uses
+    whatever its ``random_state`` says: it is seeded with ``seed`` for the call and put
+    back after, so the same scores give the same interval), the statistic evaluated on
+    many resamples at once, and arch's percentiles. rliable's loop (arch's bootstrap
+    iterator, a Python call per resample) took about 0.1 s an interval."""
+    pair = isinstance(scores, tuple)
+    arrays = tuple(np.asarray(a, dtype=float) for a in (scores if pair else (scores,)))
+    if any(a.ndim != 2 or a.size == 0 for a in arrays) or len({a.shape[1] for a in arrays}) != 1:
+        raise ValueError("bootstrap scores must be non-empty (runs, tasks) arrays over the "
+                         f"same tasks, got shapes {[a.shape for a in arrays]}")
+    tasks = arrays[0].shape[1]
+    strata = np.arange(tasks)[None]
     outer = np.random.get_state()  # noqa: NPY002 (the legacy global one, on purpose)
     np.random.seed(seed)  # noqa: NPY002
     try:
-        with warnings.catch_warnings():  # arch's note that RandomState is on its way out
-            warnings.simplefilter("ignore", FutureWarning)
-            points, intervals = rly.get_interval_estimates(
-                scores, lambda *x: np.array([func(*x)]), reps=REPS, task_bootstrap=True,
-                random_state=np.random.RandomState(seed))
+        draws: list[list[tuple[np.ndarray, np.ndarray]]] = [[] for _ in arrays]
+        for _ in range(REPS):
+            for a, drawn in zip(arrays, draws, strict=True):
+                runs = _choice(len(a), a.shape)
+                drawn.append((runs, strata if pair else _choice(tasks, (1, tasks))))
     finally:
         np.random.set_state(outer)  # noqa: NPY002
-    return {name: (float(points[name][0]), float(intervals[name][0][0]),
-                   float(intervals[name][1][0])) for name in points}
+    values = np.empty(REPS)
+    for begin in range(0, REPS, _BATCH):
+        batch = [a[np.stack([runs for runs, _ in drawn[begin:begin + _BATCH]]),
+                   np.stack([task for _, task in drawn[begin:begin + _BATCH]])]
+                 for a, drawn in zip(arrays, draws, strict=True)]
+        values[begin:begin + _BATCH] = statistic(*batch)
+    low, high = np.percentile(values, _TAILS)
+    return float(statistic(*(a[None] for a in arrays))[0]), float(low), float(high)
+
+
+def _choice(n: int, shape: tuple[int, ...]) -> np.ndarray:
+    """rliable's ``np.random.choice(n, shape, replace=True)``, the same draws for half the
+    call's overhead: the legacy generator's ``choice`` is ``randint(0, n, shape)``, and a
+    range of one value is all zeros and draws nothing."""
+    if n == 1:
+        return np.zeros(shape, dtype=np.int64)
+    return np.random.randint(0, n, shape)  # noqa: NPY002
+
+
+def mean_of_task_means(samples: np.ndarray) -> np.ndarray:
+    """(R,) rliable's ``metrics.aggregate_mean`` (the mean over tasks of the mean over
+    runs) of each of ``samples`` (R, runs, tasks), the same reductions in the same order."""
+    return samples.mean(axis=1).mean(axis=1)
 
 
 def load(root: Path) -> dict[str, dict[str, Any]]:
@@ -105,7 +146,7 @@ def _curves(root: Path, env_id: str, algo: str, seeds: list[int]) -> dict[str, A
         return None
     length = min(len(t) for t, _ in rows)
     steps, returns = rows[0][0][:length], np.array([r[:length] for _, r in rows])
-    estimates = [_estimate({"x": returns[:, [i]]}, iqm)["x"] for i in range(length)]
+    estimates = [_estimate(returns[:, [i]], iqm_rows) for i in range(length)]
     return {"timesteps": steps.tolist(), "iqm": [e[0] for e in estimates],
             "low": [e[1] for e in estimates], "high": [e[2] for e in estimates]}
 
@@ -124,17 +165,21 @@ def probability_of_improvement(scores_x: np.ndarray, scores_y: np.ndarray) -> fl
     half the ties, so the values are the same (tested equal), but for one deliberate
     difference: scores within ``SCORE_TIE`` tie, where rliable's exact comparison would
     let rounding decide."""
-    difference = scores_x[:, None, :] - scores_y[None, :, :]
-    greater = (difference > SCORE_TIE).sum(axis=(0, 1))
-    ties = (np.abs(difference) <= SCORE_TIE).sum(axis=(0, 1))
-    per_task = (greater + 0.5 * ties) / (scores_x.shape[0] * scores_y.shape[0])
-    return float(np.mean(per_task))
+    return float(improvement_rows(np.asarray(scores_x)[None], np.asarray(scores_y)[None])[0])
+
+
+def improvement_rows(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """(R,) :func:`probability_of_improvement` of each pair of resamples ``x`` (R, runs_x,
+    tasks) and ``y`` (R, runs_y, tasks)."""
+    difference = x[:, :, None, :] - y[:, None, :, :]
+    greater = (difference > SCORE_TIE).sum(axis=(1, 2))
+    ties = (np.abs(difference) <= SCORE_TIE).sum(axis=(1, 2))
+    per_task = (greater + 0.5 * ties) / (x.shape[1] * y.shape[1])
+    return per_task.mean(axis=1)
 
 
 def summarise(root: Path, env_id: str, entry: dict[str, Any]) -> dict[str, Any]:
     """The aggregate record of one env id."""
-    from rliable import metrics
-
     baselines = entry["baselines"]["policies"]
     oracle, random = np.array(baselines[ORACLE]["returns"]), np.array(baselines[RANDOM]["returns"])
     span = oracle - random
@@ -171,17 +216,17 @@ def summarise(root: Path, env_id: str, entry: dict[str, Any]) -> dict[str, Any]:
         returns = run["returns"]
         row: dict[str, Any] = {
             "runs": len(returns), "seeds": seeds.get(name),
-            "success": _estimate({"x": run["successes"]}, metrics.aggregate_mean)["x"],
+            "success": _estimate(run["successes"], mean_of_task_means),
             # The IQM gap over the tasks the oracle's return gives a scale (as in the
             # evaluation table).
-            "gap": (_estimate({"x": task_gaps(returns, oracle)}, iqm)["x"]
+            "gap": (_estimate(task_gaps(returns, oracle), iqm_rows)
                     if (oracle != 0.0).any() else None),
             "mean_gap": mean_gap(returns, oracle),
             "mean_return": float(returns.mean()),
             "decision_ms": float(run["decision_ms"].mean())}
         if informative.any():
             score = (returns[:, informative] - random[informative]) / span[informative]
-            row["score"] = _estimate({"x": score}, iqm)["x"]
+            row["score"] = _estimate(score, iqm_rows)
             # How often the policy attains the optimum (score 1 up to rounding): where a
             # rival always does, no policy can beat it (P(improvement) at most 0.5).
             row["optimal"] = float(np.mean(score >= 1.0 - 1e-9))
@@ -193,8 +238,7 @@ def summarise(root: Path, env_id: str, entry: dict[str, Any]) -> dict[str, Any]:
         if "score" not in runs[algo]:
             continue
         row["improvement"] = {
-            rival: _estimate({"x,y": (runs[algo]["score"], runs[rival]["score"])},
-                             probability_of_improvement)["x,y"]
+            rival: _estimate((runs[algo]["score"], runs[rival]["score"]), improvement_rows)
             for rival in RIVALS if "score" in runs[rival]
         }
         row["learning_curve"] = _curves(root, env_id, algo, seeds[algo])

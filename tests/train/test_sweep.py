@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from ikbranch_gym.agents.evaluation import iqm
+from ikbranch_gym.agents.evaluation import iqm, iqm_rows
 from ikbranch_gym.train import aggregate, publish, sweep
 
 TINY = ['--hyperparams', '{"n_steps": 32, "batch_size": 32, "n_epochs": 1, '
@@ -412,14 +412,53 @@ def test_probability_of_improvement_equals_rliables():
         assert probability_of_improvement(one + 1e-6, one) == 1.0
 
 
+@pytest.mark.parametrize("shape", [(1, 1), (1, 7), (5, 1), (3, 40), (5, 200), (1, 200)])
+def test_intervals_are_rliables_to_the_bit(shape):
+    # rliable's loop (arch's bootstrap iterator) against the batches: the same points and
+    # interval ends, for every statistic the aggregate reports, ties included (scores on
+    # a coarse grid, as successes and optimal moves are).
+    import warnings
+
+    from rliable import library, metrics
+
+    rng = np.random.default_rng(sum(shape))
+    fine = rng.normal(size=shape)
+    coarse = np.round(rng.random(shape) * 4) / 4
+    rival = rng.normal(size=(1, shape[1]))
+
+    def rliables(scores, func):
+        np.random.seed(0)  # noqa: NPY002 (what _estimate seeds, for rliable's draws)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", FutureWarning)
+            points, intervals = library.get_interval_estimates(
+                {"x": scores}, lambda *x: np.array([func(*x)]), reps=aggregate.REPS,
+                task_bootstrap=True, random_state=np.random.RandomState(0))
+        return float(points["x"][0]), float(intervals["x"][0][0]), float(intervals["x"][1][0])
+
+    for scores in (fine, coarse):
+        assert aggregate._estimate(scores, iqm_rows) == rliables(scores, iqm)
+        assert (aggregate._estimate(scores, aggregate.mean_of_task_means)
+                == rliables(scores, metrics.aggregate_mean))
+        assert (aggregate._estimate((scores, rival), aggregate.improvement_rows)
+                == rliables((scores, rival), aggregate.probability_of_improvement))
+        assert (aggregate._estimate((scores, coarse), aggregate.improvement_rows)
+                == rliables((scores, coarse), aggregate.probability_of_improvement))
+
+
+def test_intervals_refuse_scores_they_cannot_resample():
+    for bad in (np.zeros((0, 3)), np.zeros(4), (np.zeros((2, 3)), np.zeros((2, 4)))):
+        with pytest.raises(ValueError, match="bootstrap scores"):
+            aggregate._estimate(bad, iqm_rows)
+
+
 def test_intervals_are_reproducible_whatever_numpys_global_state():
     # rliable resamples with numpy's global generator; the estimates must not depend on it.
     scores = np.random.default_rng(0).normal(size=(4, 30))
     np.random.seed(1)  # noqa: NPY002 (the global generator rliable uses)
-    first = aggregate._estimate({"x": scores}, iqm)
+    first = aggregate._estimate(scores, iqm_rows)
     np.random.seed(2)  # noqa: NPY002
     outer = np.random.get_state()  # noqa: NPY002
-    second = aggregate._estimate({"x": scores}, iqm)
+    second = aggregate._estimate(scores, iqm_rows)
     assert first == second
     after = np.random.get_state()  # noqa: NPY002
     assert all(np.array_equal(a, b) for a, b in zip(outer, after, strict=True))
