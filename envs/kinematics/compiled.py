@@ -461,6 +461,10 @@ def solver(arm: Arm) -> Solver:
     arguments = driver_arguments(arm)
 
     def solve_for_arm(poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if not poses.flags.writeable:
+            # numba types a read-only array apart: one would compile the driver again, on
+            # the first call with a waypoint file's frozen poses, outside the warm-up.
+            poses = poses.copy()
         q, ok, reach, bad, status = solve(kernel, poses, *arguments)
         if status:
             where = f" (pose {bad} of the batch)" if len(poses) > 1 else ""

@@ -161,6 +161,23 @@ def test_other_dtypes_and_layouts_give_the_same_answer():
     assert arm.reaches(pose[None]).shape == (1,)
 
 
+def test_frozen_poses_go_through_the_driver_the_warm_up_compiled():
+    # A waypoint file's poses are read-only; numba would type them apart and compile the
+    # driver a second time, outside the warm-up, on the first call.
+    driver = compiled_solve_poses()
+    arm = make_arm("anthropomorphic")
+    poses = arm.fk(np.random.default_rng(5).uniform(*arm.joint_limits.T, size=(6, arm.dof)))
+    reference = arm.ik(poses), arm.ik(poses[0])
+    compiled = list(driver.signatures)
+    frozen = poses.copy()
+    frozen.flags.writeable = False
+    for got, want in zip((arm.ik(frozen), arm.ik(frozen[0])), reference, strict=True):
+        for a, b in zip(got, want, strict=True):
+            np.testing.assert_array_equal(a, b)
+    assert driver.signatures == compiled
+    assert not frozen.flags.writeable
+
+
 def test_without_numba_the_same_functions_run_interpreted(monkeypatch):
     arm = make_arm("ur5e")
     poses = arm.fk(awkward_configurations(arm, n=20))
