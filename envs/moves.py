@@ -38,7 +38,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ikbranch_gym.envs.costs import TransitionCost
-from ikbranch_gym.envs.jit import njit
+from ikbranch_gym.envs.jit import njit, writable
 from ikbranch_gym.envs.kinematics import Arm
 from ikbranch_gym.envs.kinematics.singularities import singularity_margins
 from ikbranch_gym.envs.models import CollisionChecker
@@ -643,11 +643,14 @@ class TaskMoves:
         pricer = self.pricer
         waypoints = self._waypoints[flat]
         blocked = np.zeros(shape, dtype=np.bool_)
+        # A contiguous view np.broadcast_to made is read-only.
+        origins, collision = writable(origins), writable(collision)
         if self.continuity is not None:
             origin_config = (self.configuration if shape[1] == len(self.configuration)
                              else np.full(shape[1], UNKNOWN, dtype=np.int64))
-            _block_moves(origins, self.candidates[flat], self.inside[waypoints], origin_config,
-                         self.configuration, self.limit, self.revolute, blocked)
+            _block_moves(origins, self.candidates[flat], self.inside[waypoints],
+                         writable(origin_config), writable(self.configuration), self.limit,
+                         self.revolute, blocked)
         _price(origins, self.candidates[flat], self.valid[flat], waypoints, collision, blocked,
                np.full(count, self.task.free_start), np.full(count, self.n_waypoints),
                *pricer.price_arguments, values, flags)
@@ -664,9 +667,9 @@ class TaskMoves:
         if self.continuity is not None:
             origin_config = (self.configuration if len(origins) == len(self.configuration)
                              else np.full(len(origins), UNKNOWN, dtype=np.int64))
-            _block_moves(origins[None], self.candidates[waypoint][None],
-                         self.inside[waypoint : waypoint + 1], origin_config,
-                         self.configuration, self.limit, self.revolute, out)
+            _block_moves(writable(origins[None]), self.candidates[waypoint][None],
+                         self.inside[waypoint : waypoint + 1], writable(origin_config),
+                         writable(self.configuration), self.limit, self.revolute, out)
         return out[0]
 
     def edges(self, waypoint: int) -> tuple[np.ndarray, np.ndarray]:

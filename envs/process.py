@@ -40,7 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ikbranch_gym.envs.jit import njit
+from ikbranch_gym.envs.jit import njit, writable
 from ikbranch_gym.envs.kinematics import Arm
 
 #: The derived limit's least value and factor over the job's hardest segment.
@@ -103,9 +103,11 @@ def blocked(q0: np.ndarray, config0: np.ndarray, q1: np.ndarray, config1: np.nda
     no configuration check) to ``q1[k]`` (``config1[k]``) reconfigures the arm (module
     docstring); rows or columns with NaN are not blocked (they are no moves)."""
     out = np.empty((len(q0), len(q1)), dtype=np.bool_)
-    _blocked(np.ascontiguousarray(q0, dtype=np.float64), np.asarray(config0, dtype=np.int64),
-             np.ascontiguousarray(q1, dtype=np.float64), np.asarray(config1, dtype=np.int64),
-             float(limit), np.asarray(revolute, dtype=np.bool_), out)
+    _blocked(writable(np.ascontiguousarray(q0, dtype=np.float64)),
+             writable(np.asarray(config0, dtype=np.int64)),
+             writable(np.ascontiguousarray(q1, dtype=np.float64)),
+             writable(np.asarray(config1, dtype=np.int64)), float(limit),
+             writable(np.asarray(revolute, dtype=np.bool_)), out)
     return out
 
 

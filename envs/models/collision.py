@@ -91,6 +91,8 @@ import mujoco.batch
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ikbranch_gym.envs.jit import writable
+
 from .filter import DISTANCE_TOLERANCE, CompiledFilter, path_steps
 from .filter.kernels import BY_MUJOCO
 
@@ -382,8 +384,8 @@ class CollisionChecker:
         q0, q1 = self._ends(q0, q1)
         shape = np.broadcast_shapes(q0.shape, q1.shape)[:-1]
         start, end = np.broadcast_arrays(q0, q1)
-        start = np.ascontiguousarray(start.reshape(-1, self.dof))
-        end = np.ascontiguousarray(end.reshape(-1, self.dof))
+        start = writable(np.ascontiguousarray(start.reshape(-1, self.dof)))
+        end = writable(np.ascontiguousarray(end.reshape(-1, self.dof)))
         out = np.empty(len(end), dtype=np.int64)
         path_steps(start, end, self.lever, self.resolution, out)
         return out.reshape(shape)
@@ -438,7 +440,7 @@ class CollisionChecker:
             start = np.broadcast_to(start, end.shape)
             return self._check_paths_flat(start, end, False)[0]
         steps = np.empty(len(end), dtype=np.int64)
-        path_steps(start, end, self.lever, self.resolution, steps)
+        path_steps(writable(start), writable(end), self.lever, self.resolution, steps)
         return self._compiled().paths(start, end, steps, False) >= 0
 
     def rows_collide(self, q: np.ndarray) -> np.ndarray:

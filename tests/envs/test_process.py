@@ -212,6 +212,29 @@ def test_every_planner_keeps_the_configuration_inside_segments(spin_file, spec):
         assert any(w != UNWIND for w in moved), moved
 
 
+def test_continuity_kernels_run_one_compiled_version_whatever_the_arrays(spin_file):
+    # A ladder's configurations are frozen and a contiguous broadcast of origins is a
+    # read-only view: numba would compile each kernel again for every read-only argument,
+    # on first use, so the kernels get writable arrays.
+    from numba.core import types
+
+    from ikbranch_gym.envs import moves, process
+
+    for spec in PLANNERS:
+        _play(_env(spin_file, max_joint_step="auto", task_segments=[UNWIND]), spec)
+    frozen = np.zeros((2, 3))
+    configuration = np.zeros(2, dtype=np.int64)
+    revolute = np.ones(3, dtype=bool)
+    for array in (frozen, configuration, revolute):
+        array.flags.writeable = False
+    assert not blocked(frozen, configuration, frozen, configuration, 1.0, revolute).any()
+    for kernel in (moves._block_moves, moves._price, process._blocked):
+        assert kernel.signatures, kernel
+        for signature in kernel.signatures:
+            assert all(getattr(a, "mutable", True) for a in signature
+                       if isinstance(a, types.Array)), (kernel, signature)
+
+
 def test_masks_leave_out_exactly_the_reconfiguring_moves(spin_file):
     arm = make_arm(ARM)
     env = _env(spin_file, max_joint_step=math.radians(40.0), task_segments=[UNWIND])

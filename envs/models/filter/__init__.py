@@ -51,6 +51,8 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 
+from ikbranch_gym.envs.jit import writable
+
 from .. import native
 from .kernels import (
     COUNTERS,
@@ -112,7 +114,7 @@ class CompiledFilter:
         else MuJoCo's count. ``need`` > 0: only until ``need`` free rows are found (the
         rest −1, unchecked)."""
         out, how = np.empty(len(rows), dtype=np.int64), np.empty(len(rows), dtype=np.int8)
-        bound_configurations(self._bound, _ONE_SCENE, _writable(rows), need, False, out, how)
+        bound_configurations(self._bound, _ONE_SCENE, writable(rows), need, False, out, how)
         return out
 
     def collide(self, rows: np.ndarray, need: int = 0) -> np.ndarray:
@@ -125,7 +127,7 @@ class CompiledFilter:
         """:meth:`collide`, and per row who decided it: ``kernels.BY_BOUNDS``,
         ``BY_WITNESS`` (a proof, with its tolerance) or ``BY_MUJOCO``."""
         out, how = np.empty(len(rows), dtype=np.int64), np.empty(len(rows), dtype=np.int8)
-        bound_configurations(self._bound, _ONE_SCENE, _writable(rows), need, True, out, how)
+        bound_configurations(self._bound, _ONE_SCENE, writable(rows), need, True, out, how)
         return out, how
 
     def paths(self, start_rows: np.ndarray, end_rows: np.ndarray, steps: np.ndarray,
@@ -133,19 +135,13 @@ class CompiledFilter:
         """(M,) grid index of a colliding sample per path (−1: free), the lowest with
         ``first``; ``start_rows`` (M or 1, dof), ``end_rows`` (M, dof), ``steps`` (M,)."""
         out = np.empty(len(end_rows), dtype=np.int64)
-        bound_paths(self._bound, _ONE_SCENE, _writable(start_rows), _writable(end_rows), steps,
+        bound_paths(self._bound, _ONE_SCENE, writable(start_rows), writable(end_rows), steps,
                     first, out)
         return out
 
 
 #: The scene index of every row of a filter of its own.
 _ONE_SCENE = np.zeros(1, dtype=np.int64)
-
-
-def _writable(rows: np.ndarray) -> np.ndarray:
-    """``rows`` as the kernels take them: numba types a read-only array (a frozen
-    parameter such as an arm's home) apart, and would compile every kernel again for it."""
-    return rows if rows.flags.writeable else rows.copy()
 
 
 class FilterStack:
@@ -181,20 +177,20 @@ class FilterStack:
         """(M,) 0 where configuration ``rows[i]`` is free in scene ``scenes[i]``, > 0 where
         it is in contact (:meth:`CompiledFilter.collide`)."""
         out, how = np.empty(len(rows), dtype=np.int64), np.empty(len(rows), dtype=np.int8)
-        bound_configurations(self._bound, scenes, _writable(rows), 0, True, out, how)
+        bound_configurations(self._bound, scenes, writable(rows), 0, True, out, how)
         return out
 
     def collide_how(self, scenes: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`collide`, and per row who decided it (``CompiledFilter.collide_how``)."""
         out, how = np.empty(len(rows), dtype=np.int64), np.empty(len(rows), dtype=np.int8)
-        bound_configurations(self._bound, scenes, _writable(rows), 0, True, out, how)
+        bound_configurations(self._bound, scenes, writable(rows), 0, True, out, how)
         return out, how
 
     def paths(self, scenes: np.ndarray, start_rows: np.ndarray, end_rows: np.ndarray,
               steps: np.ndarray, first: bool) -> np.ndarray:
         """:meth:`CompiledFilter.paths` of paths each in its scene ``scenes[m]``."""
         out = np.empty(len(end_rows), dtype=np.int64)
-        bound_paths(self._bound, scenes, _writable(start_rows), _writable(end_rows), steps,
+        bound_paths(self._bound, scenes, writable(start_rows), writable(end_rows), steps,
                     first, out)
         return out
 
