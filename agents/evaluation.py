@@ -342,8 +342,7 @@ def iqm(values: ArrayLike) -> float:
     """Interquartile mean of all entries: the mean of the values left after the lowest and
     the highest ``floor(n / 4)`` are dropped. It is rliable's IQM
     (``scipy.stats.trim_mean(values, 0.25, axis=None)``) to the bit: the same partition and
-    the same mean, without scipy's handling of its arguments, which took most of the time
-    of a sweep's bootstrap intervals (about 0.5 ms a call, 2,000 calls an interval)."""
+    the same mean, without scipy's handling of its arguments."""
     flat = np.asarray(values, dtype=float).ravel()
     if flat.size == 0:
         raise ValueError("the interquartile mean of no values")

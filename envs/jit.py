@@ -20,8 +20,6 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from ikbranch_gym.envs.kinematics.compiled import cached_njit, writable_cache
 
 _ROOT = Path(__file__).resolve().parent
@@ -61,10 +59,3 @@ def njit(function: Callable | None = None, **options: Any) -> Any:
     directory = cache_directory()
     return cached_njit(function, None if directory is None else Path(directory), _ROOT,
                        **options)
-
-
-def writable(array: np.ndarray) -> np.ndarray:
-    """``array`` as the kernels take it: numba types a read-only array (a frozen parameter
-    such as an arm's home, a view ``np.broadcast_to`` made) apart, and would compile a
-    kernel again, beside the warm-up's, for it."""
-    return array if array.flags.writeable else array.copy()

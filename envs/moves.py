@@ -38,8 +38,9 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ikbranch_gym.envs.costs import TransitionCost
-from ikbranch_gym.envs.jit import njit, writable
+from ikbranch_gym.envs.jit import njit
 from ikbranch_gym.envs.kinematics import Arm
+from ikbranch_gym.envs.kinematics.compiled import writable
 from ikbranch_gym.envs.kinematics.singularities import singularity_margins
 from ikbranch_gym.envs.models import CollisionChecker
 from ikbranch_gym.envs.process import UNKNOWN, Continuity, continuity, move_blocked

@@ -40,8 +40,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ikbranch_gym.envs.jit import njit, writable
+from ikbranch_gym.envs.jit import njit
 from ikbranch_gym.envs.kinematics import Arm
+from ikbranch_gym.envs.kinematics.compiled import writable
 
 #: The derived limit's least value and factor over the job's hardest segment.
 MIN_DERIVED_LIMIT = math.radians(10.0)

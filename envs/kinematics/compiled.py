@@ -461,17 +461,21 @@ def solver(arm: Arm) -> Solver:
     arguments = driver_arguments(arm)
 
     def solve_for_arm(poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        if not poses.flags.writeable:
-            # numba types a read-only array apart: one would compile the driver again, on
-            # the first call with a waypoint file's frozen poses, outside the warm-up.
-            poses = poses.copy()
-        q, ok, reach, bad, status = solve(kernel, poses, *arguments)
+        # A waypoint file's poses are frozen.
+        q, ok, reach, bad, status = solve(kernel, writable(poses), *arguments)
         if status:
             where = f" (pose {bad} of the batch)" if len(poses) > 1 else ""
             raise ValueError(STATUS_MESSAGES[status] + where)
         return q, ok, reach
 
     return solve_for_arm
+
+
+def writable(array: np.ndarray) -> np.ndarray:
+    """``array`` as a kernel takes it: numba types a read-only array (a frozen parameter
+    such as an arm's home, a view ``np.broadcast_to`` made) apart, and would compile the
+    kernel again, beside the warm-up's, for it."""
+    return array if array.flags.writeable else array.copy()
 
 
 def warm_up() -> None:

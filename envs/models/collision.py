@@ -91,7 +91,7 @@ import mujoco.batch
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ikbranch_gym.envs.jit import writable
+from ikbranch_gym.envs.kinematics.compiled import writable
 
 from .filter import DISTANCE_TOLERANCE, CompiledFilter, path_steps
 from .filter.kernels import BY_MUJOCO
@@ -439,8 +439,9 @@ class CollisionChecker:
         if self.backend != "compiled":
             start = np.broadcast_to(start, end.shape)
             return self._check_paths_flat(start, end, False)[0]
+        start, end = writable(start), writable(end)
         steps = np.empty(len(end), dtype=np.int64)
-        path_steps(writable(start), writable(end), self.lever, self.resolution, steps)
+        path_steps(start, end, self.lever, self.resolution, steps)
         return self._compiled().paths(start, end, steps, False) >= 0
 
     def rows_collide(self, q: np.ndarray) -> np.ndarray:

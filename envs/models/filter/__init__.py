@@ -51,7 +51,7 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 
-from ikbranch_gym.envs.jit import writable
+from ikbranch_gym.envs.kinematics.compiled import writable
 
 from .. import native
 from .kernels import (
