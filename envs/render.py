@@ -32,6 +32,7 @@ import numpy as np
 from ikbranch_gym.envs.kinematics import make_arm
 from ikbranch_gym.envs.models import SCENES, build_model, milling_cell_poses
 from ikbranch_gym.envs.models.builders import COLLISION_GROUP, VISUAL_GROUP
+from ikbranch_gym.envs.models.collision import PLANE
 
 #: One arm configuration: joint values, kinematics order.
 Configuration = Sequence[float] | np.ndarray
@@ -51,7 +52,7 @@ def framing_camera(
     (leading qpos entries; none: ``data``'s current qpos). ``geoms``: frame only these
     (a bool mask or indices over the model's geoms, e.g. :func:`arm_geoms`), so a large
     cell does not shrink the arm to a few pixels."""
-    solid = model.geom_type != mujoco.mjtGeom.mjGEOM_PLANE
+    solid = model.geom_type != PLANE
     if geoms is not None:
         chosen = np.zeros(model.ngeom, dtype=bool)
         chosen[np.asarray(geoms)] = True

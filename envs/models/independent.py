@@ -25,11 +25,13 @@ import mujoco
 import numpy as np
 
 from ikbranch_gym.envs.models.builders import VISUAL_GROUP
+from ikbranch_gym.envs.models.collision import PLANE
 
 if TYPE_CHECKING:
     from ikbranch_gym.envs.ik_branch_env import IKBranchEnv
 
-#: Pairs whose bounding spheres are farther apart than this are not measured (m).
+#: Pairs whose bounding spheres are farther apart than this (a sphere: farther above a
+#: plane) are not measured (m).
 BROAD_PHASE = 0.05
 
 
@@ -182,38 +184,41 @@ class Measure:
                 if _shape(model, int(a)) is not None and _shape(model, int(b)) is not None]
         return np.array(keep, dtype=np.int64).reshape(-1, 2)
 
-    def distances(self, q: np.ndarray, pairs: np.ndarray) -> np.ndarray:
-        """Signed distances of ``pairs`` at configuration ``q`` (inf beyond the broad
-        phase)."""
-        model, data = self.model, self.data
-        data.qpos[: self.dof] = q
-        mujoco.mj_kinematics(model, data)
-        a, b = pairs[:, 0], pairs[:, 1]
-        centre = np.linalg.norm(data.geom_xpos[a] - data.geom_xpos[b], axis=1)
-        planar = (model.geom_type[a] == mujoco.mjtGeom.mjGEOM_PLANE) | (
-            model.geom_type[b] == mujoco.mjtGeom.mjGEOM_PLANE)
-        reach = model.geom_rbound[a] + model.geom_rbound[b]
-        near = planar | (centre - reach < BROAD_PHASE)
-        out = np.full(len(pairs), np.inf)
-        for k in np.flatnonzero(near):
-            out[k] = self._distance(int(a[k]), int(b[k]))
-        return out
-
-    def lower_bounds(self, q: np.ndarray, pairs: np.ndarray) -> np.ndarray:
-        """Lower bounds of the signed distances of ``pairs`` at ``q``: coal's distance
-        where the pair's bounding spheres come within the broad phase, else the spheres'
-        gap (a plane's pairs always by coal)."""
+    def _gaps(self, q: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+        """Lower bounds of the signed distances of ``pairs`` at ``q`` from bounding spheres
+        alone (MuJoCo's ``geom_rbound``), placed by MuJoCo's forward kinematics: the gap
+        between two spheres, or a sphere's height above a plane's halfspace (two planes:
+        -inf)."""
         model, data = self.model, self.data
         data.qpos[: self.dof] = q
         mujoco.mj_kinematics(model, data)
         a, b = pairs[:, 0], pairs[:, 1]
         gap = (np.linalg.norm(data.geom_xpos[a] - data.geom_xpos[b], axis=1)
                - model.geom_rbound[a] - model.geom_rbound[b])
-        planar = (model.geom_type[a] == mujoco.mjtGeom.mjGEOM_PLANE) | (
-            model.geom_type[b] == mujoco.mjtGeom.mjGEOM_PLANE)
-        out = gap.copy()
-        for k in np.flatnonzero(planar | (gap < BROAD_PHASE)):
-            out[k] = self._distance(int(a[k]), int(b[k]))
+        for flat, other, rows in ((a, b, model.geom_type[a] == PLANE),
+                                  (b, a, model.geom_type[b] == PLANE)):
+            if rows.any():
+                normal = data.geom_xmat[flat[rows]].reshape(-1, 3, 3)[:, :, 2]
+                height = np.einsum("ij,ij->i", normal,
+                                   data.geom_xpos[other[rows]] - data.geom_xpos[flat[rows]])
+                gap[rows] = np.where(model.geom_type[other[rows]] == PLANE, -np.inf,
+                                     height - model.geom_rbound[other[rows]])
+        return gap
+
+    def distances(self, q: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+        """Signed distances of ``pairs`` at configuration ``q`` (inf where the bounding
+        spheres are farther apart than the broad phase)."""
+        out = np.full(len(pairs), np.inf)
+        for k in np.flatnonzero(self._gaps(q, pairs) < BROAD_PHASE):
+            out[k] = self._distance(int(pairs[k, 0]), int(pairs[k, 1]))
+        return out
+
+    def lower_bounds(self, q: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+        """Lower bounds of the signed distances of ``pairs`` at ``q``: coal's distance
+        where the pair's bounding spheres come within the broad phase, else their gap."""
+        out = self._gaps(q, pairs)
+        for k in np.flatnonzero(out < BROAD_PHASE):
+            out[k] = self._distance(int(pairs[k, 0]), int(pairs[k, 1]))
         return out
 
     def certify(self, q0: np.ndarray, q1: np.ndarray, pairs: np.ndarray,
