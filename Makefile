@@ -14,7 +14,25 @@ $(STAMP): pyproject.toml
 	# Pinned CPU build first: an unpinned torch pulls a multi-GB CUDA build.
 	$(BIN)/pip install --quiet --no-compile torch==2.13.0
 	$(BIN)/pip install --quiet --no-compile -e '.[dev]'
+	# Where PYTHONDONTWRITEBYTECODE is set Python writes no bytecode when it imports a
+	# module, so every process (test workers, CLI runs, Ray workers) would compile torch,
+	# Ray and the rest from source again: write it once for what the package and the
+	# tests import.
+	PYTHONDONTWRITEBYTECODE= $(BIN)/python -c "$$BYTECODE"
 	touch $(STAMP)
+
+# Every module of the package imported (so every dependency it loads), what the sweep
+# loads when it runs (Ray Tune), and the test tools.
+define BYTECODE
+import importlib, pkgutil, warnings
+warnings.simplefilter("ignore")
+import ikbranch_gym
+for module in pkgutil.walk_packages(ikbranch_gym.__path__, "ikbranch_gym."):
+    if not module.name.endswith("__main__"):
+        importlib.import_module(module.name)
+import coal, hypothesis, pytest, ray.tune, scipy.optimize, xdist
+endef
+export BYTECODE
 
 install: $(STAMP)
 
