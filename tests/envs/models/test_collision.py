@@ -93,13 +93,14 @@ def test_free_path_and_its_endpoints():
     np.testing.assert_array_equal(samples[-1], q1)
 
 
-def _bounding_sphere_points(model, data):
-    """(ngeom, 7, 3): every geom's centre and the six points of its bounding sphere on its
-    local axes, in world coordinates (the lever-arm bound covers the whole sphere)."""
+def _bounding_sphere_points(model, xpos, xmat):
+    """(…, ngeom, 7, 3): every geom's centre and the six points of its bounding sphere on
+    its local axes, in world coordinates (the lever-arm bound covers the whole sphere), for
+    geom placements ``xpos`` (…, ngeom, 3) and ``xmat`` (…, ngeom, 9)."""
     offsets = np.concatenate([np.zeros((1, 3)), np.eye(3), -np.eye(3)])
     local = model.geom_rbound[:, None, None] * offsets[None]
-    rotation = data.geom_xmat.reshape(-1, 3, 3)
-    return data.geom_xpos[:, None] + np.einsum("gij,gkj->gki", rotation, local)
+    rotation = xmat.reshape(*xmat.shape[:-1], 3, 3)
+    return xpos[..., None, :] + np.einsum("...gij,gkj->...gki", rotation, local)
 
 
 @pytest.mark.parametrize("arm_name", ARM_NAMES)
@@ -115,12 +116,14 @@ def test_step_respects_the_displacement_bound(arm_name):
     for _ in range(20):
         q0, q1 = rng.uniform(lower, upper, size=(2, arm.dof))
         samples = checker.path_samples(q0, q1)
-        positions = []
+        xpos, xmat = [], []
         for q in samples:
             data.qpos[:] = q
             mujoco.mj_kinematics(model, data)
-            positions.append(_bounding_sphere_points(model, data))
-        moved = np.linalg.norm(np.diff(np.array(positions), axis=0), axis=-1).max()
+            xpos.append(data.geom_xpos.copy())
+            xmat.append(data.geom_xmat.copy())
+        positions = _bounding_sphere_points(model, np.array(xpos), np.array(xmat))
+        moved = np.linalg.norm(np.diff(positions, axis=0), axis=-1).max()
         assert moved <= checker.resolution + 1e-12
 
 
