@@ -95,15 +95,13 @@ from ikbranch_gym.envs.kinematics.compiled import writable
 
 from .filter import DISTANCE_TOLERANCE, CompiledFilter, path_steps
 from .filter.kernels import BY_MUJOCO
+from .filter.layout import _GEOM_PLANE as PLANE  # an int: numpy compares mujoco's enum per element
 
 #: Default Cartesian resolution δ (m): largest displacement of any geom point between
 #: samples, and the clearance below which two geoms count as colliding.
 DEFAULT_RESOLUTION = 0.01
 #: ``CollisionChecker`` backends (module docstring); "auto" is "compiled".
 BACKENDS = ("auto", "compiled", "batch", "loop")
-#: A plane's ``geom_type`` as an int: numpy compares an array with mujoco's enum object
-#: element by element in Python (about 2 µs an element).
-PLANE = int(mujoco.mjtGeom.mjGEOM_PLANE)
 
 
 @dataclass(frozen=True)
@@ -205,7 +203,7 @@ def candidate_pairs(model: mujoco.MjModel) -> np.ndarray:
         if not (model.geom_contype[g1] & model.geom_conaffinity[g2]
                 or model.geom_contype[g2] & model.geom_conaffinity[g1]):
             continue
-        plane2 = model.geom_type[g2] == mujoco.mjtGeom.mjGEOM_PLANE
+        plane2 = model.geom_type[g2] == PLANE
         pairs.append((g2, g1) if plane2 else (g1, g2))
     return np.array(pairs, dtype=np.int64).reshape(-1, 2)
 

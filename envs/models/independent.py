@@ -38,7 +38,7 @@ BROAD_PHASE = 0.05
 def _shape(model: mujoco.MjModel, g: int) -> coal.ShapeBase | None:
     """coal's shape of geom ``g`` in the geom's frame (None: a type not measured)."""
     kind, size = model.geom_type[g], model.geom_size[g]
-    if kind == mujoco.mjtGeom.mjGEOM_PLANE:
+    if kind == PLANE:
         return coal.Halfspace(np.array([0.0, 0.0, 1.0]), 0.0)
     if kind == mujoco.mjtGeom.mjGEOM_SPHERE:
         return coal.Sphere(size[0])
@@ -174,7 +174,7 @@ class Measure:
     def _drawn(self, body: int) -> list[int]:
         model = self.model
         geoms = np.flatnonzero(model.geom_bodyid == body)
-        planes = [int(g) for g in geoms if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_PLANE]
+        planes = [int(g) for g in geoms if model.geom_type[g] == PLANE]
         return planes + [int(g) for g in geoms if model.geom_group[g] == VISUAL_GROUP]
 
     def _geom_pairs(self, pairs: np.ndarray) -> np.ndarray:
