@@ -102,6 +102,8 @@ from .filter.layout import _GEOM_PLANE as PLANE  # an int: numpy compares mujoco
 DEFAULT_RESOLUTION = 0.01
 #: ``CollisionChecker`` backends (module docstring); "auto" is "compiled".
 BACKENDS = ("auto", "compiled", "batch", "loop")
+#: Paths the loop backend advances side by side.
+LOOP_CHUNK = 256
 
 
 @dataclass(frozen=True)
@@ -498,14 +500,13 @@ class CollisionChecker:
                     contacts[path] = self.contacts(sample)
             return collides, first, contacts, counts
         if self.backend == "loop":
-            for row, n in enumerate(steps.tolist()):
-                hit_index = self._first_hit_advancing(q0[row], q1[row], n)
-                if hit_index >= 0:
-                    collides[row] = True
-                    first[row] = hit_index / n
-                    if want_contacts:
-                        sample = q0[row] + first[row] * (q1[row] - q0[row])
-                        contacts[row] = self.contacts(sample)
+            hits = self._first_hits_advancing(q0, q1, steps)
+            for row in np.flatnonzero(hits >= 0):
+                collides[row] = True
+                first[row] = hits[row] / steps[row]
+                if want_contacts:
+                    sample = q0[row] + first[row] * (q1[row] - q0[row])
+                    contacts[row] = self.contacts(sample)
             return collides, first, contacts, counts
         owner = np.repeat(np.arange(len(q0)), counts)
         starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
@@ -524,59 +525,98 @@ class CollisionChecker:
                     contacts[path] = self.contacts(samples[row])
         return collides, first, contacts, counts
 
-    def _first_hit_advancing(self, q0: np.ndarray, q1: np.ndarray, n: int) -> int:
-        """Grid index i of the first sample q0 + (i/n)(q1 − q0) closer than δ to a contact,
-        −1 if none; skips samples the distances prove free (module docstring)."""
+    def _first_hits_advancing(self, q0: np.ndarray, q1: np.ndarray,
+                              steps: np.ndarray) -> np.ndarray:
+        """Per path q0 → q1 (M, dof) of ``steps`` (M,) grid steps: the index i of the first
+        sample q0 + (i/n)(q1 − q0) closer than δ to a contact, −1 if none; samples the
+        distances prove free are skipped (module docstring). The paths advance side by side,
+        ``LOOP_CHUNK`` at a time: the bounds of every path standing at a sample are one numpy
+        computation, the exact distances and ``mj_collision`` each path's own calls."""
+        hits = np.full(len(q0), -1, dtype=np.int64)
+        for start in range(0, len(q0), LOOP_CHUNK):
+            rows = slice(start, start + LOOP_CHUNK)
+            hits[rows] = self._advance_side_by_side(q0[rows], q1[rows], steps[rows])
+        return hits
+
+    def _advance_side_by_side(self, q0: np.ndarray, q1: np.ndarray,
+                              n: np.ndarray) -> np.ndarray:
+        """:meth:`_first_hits_advancing` of at most ``LOOP_CHUNK`` paths."""
+        hits = np.full(len(q0), -1, dtype=np.int64)
         delta = q1 - q0
-        weighted = self._body_levers * np.abs(delta)  # (nbody, dof)
-        reach = weighted.sum(axis=1)
+        weighted = self._body_levers[None] * np.abs(delta)[:, None, :]  # (M, nbody, dof)
+        reach = weighted.sum(axis=2)
         shared = weighted @ self._body_moves.T  # motion of b1's points by b2's joints
         # Rate (per unit t) at which the distance of bodies b1, b2 can change: joints that
         # move both turn them rigidly together and drop out.
-        rate = reach[:, None] + reach[None, :] - shared - shared.T
-        pair_rate = rate[self._pair_bodies[:, 0], self._pair_bodies[:, 1]]
+        rate = reach[:, :, None] + reach[:, None, :] - shared - shared.transpose(0, 2, 1)
+        pair_rate = rate[:, self._pair_bodies[:, 0], self._pair_bodies[:, 1]]  # (M, npair)
         moving = pair_rate > 1e-12
-        if not moving.any():  # nothing moves relative to anything: one sample decides
-            return -1 if self._n_contacts_loop(q0[None]).item() == 0 else 0
-        pair_rate, radius = pair_rate[moving], self._radius_sum[moving]
-        first, second = self._pairs[moving, 0], self._pairs[moving, 1]
-        spheres = int(np.count_nonzero(~self._plane_pairs[moving]))  # planes come last
+        # Nothing moves relative to anything: one sample decides.
+        still = np.flatnonzero(~moving.any(axis=1))
+        if len(still):
+            hits[still] = np.where(self._n_contacts_loop(q0[still]) == 0, -1, 0)
+        # A pair that does not move never limits a step: it sorts after every moving one,
+        # past the first exact distance, which ends the search.
+        first, second = self._pairs[:, 0], self._pairs[:, 1]
+        spheres = int(np.count_nonzero(~self._plane_pairs))  # planes come last
         sphere_first, sphere_second = first[:spheres], second[:spheres]
         plane_first, plane_second = first[spheres:], second[spheres:]
-        first_ids, second_ids, rates = first.tolist(), second.tolist(), pair_rate.tolist()
+        first_ids, second_ids, pair_rates = first.tolist(), second.tolist(), pair_rate.tolist()
         margin = self.resolution + DISTANCE_TOLERANCE
-        model, data = self.model, self._data
-        geom_distance = mujoco.mj_geomDistance
-        qpos = self.model.qpos0.copy()
-        centre, frame = data.geom_xpos, data.geom_xmat
-        i = 0
-        while i <= n:
-            qpos[: self.dof] = q0 + (i / n) * delta
-            data.qpos[:] = qpos
-            mujoco.mj_kinematics(model, data)
+        model, geom_distance = self.model, mujoco.mj_geomDistance
+        data = self._data
+        qpos = np.broadcast_to(model.qpos0, (len(q0), model.nq)).copy()
+        index = np.zeros(len(q0), dtype=np.int64)
+        active = np.flatnonzero(moving.any(axis=1))
+        centre = np.empty((len(q0), model.ngeom, 3))
+        frame = np.empty((len(q0), model.ngeom, 9))
+        while len(active):
+            qpos[active, : self.dof] = (q0[active] + (index[active] / n[active])[:, None]
+                                        * delta[active])
+            for at, row in enumerate(active.tolist()):
+                data.qpos[:] = qpos[row]
+                mujoco.mj_kinematics(model, data)
+                centre[at], frame[at] = data.geom_xpos, data.geom_xmat
             # Lower bounds from bounding spheres (half-spaces for planes) ...
-            gap = centre[sphere_first] - centre[sphere_second]
-            normal = frame[plane_first][:, 2::3]  # each plane's z axis (row-major xmat)
-            above = np.einsum("ij,ij->i", normal, centre[plane_second] - centre[plane_first])
-            bound = np.concatenate([np.sqrt(np.einsum("ij,ij->i", gap, gap)), above]) - radius
-            steps = ((bound - margin) / pair_rate).tolist()
-            # ... then exact distances, nearest-in-time first, only while a pair's bound
-            # could still be the one that limits the step.
-            best, hit = np.inf, False
-            for k in sorted(range(len(steps)), key=steps.__getitem__):
-                if steps[k] >= best:
-                    break
-                cutoff = margin + best * rates[k] if best < np.inf else 1e3
-                distance = geom_distance(model, data, first_ids[k], second_ids[k], cutoff, None)
-                if distance < margin:
-                    hit = True
-                    break
-                best = min(best, (distance - margin) / rates[k])
-            if hit:
-                mujoco.mj_collision(model, data)
-                if data.ncon:
-                    return i
-                i += 1
-            else:
-                i += 1 + int(best * n)
-        return -1
+            at_centre, at_frame = centre[: len(active)], frame[: len(active)]
+            gap = at_centre[:, sphere_first] - at_centre[:, sphere_second]
+            normal = at_frame[:, plane_first][:, :, 2::3]  # each plane's z axis (row-major)
+            above = np.einsum("mij,mij->mi", normal,
+                              at_centre[:, plane_second] - at_centre[:, plane_first])
+            bound = np.concatenate([np.sqrt(np.einsum("mij,mij->mi", gap, gap)), above],
+                                   axis=1) - self._radius_sum
+            limits = np.divide(bound - margin, pair_rate[active], where=moving[active],
+                               out=np.full(bound.shape, np.inf))
+            orders = np.argsort(limits, axis=1, kind="stable")
+            going = []
+            for row, order, limit in zip(active.tolist(), orders.tolist(), limits.tolist(),
+                                         strict=True):
+                rates = pair_rates[row]
+                # ... then exact distances, nearest-in-time first, only while a pair's
+                # bound could still be the one that limits the step (the path's sample
+                # placed again: the model holds one at a time).
+                data.qpos[:] = qpos[row]
+                mujoco.mj_kinematics(model, data)
+                best, hit = np.inf, False
+                for k in order:
+                    if limit[k] >= best:
+                        break
+                    cutoff = margin + best * rates[k] if best < np.inf else 1e3
+                    distance = geom_distance(model, data, first_ids[k], second_ids[k], cutoff,
+                                             None)
+                    if distance < margin:
+                        hit = True
+                        break
+                    best = min(best, (distance - margin) / rates[k])
+                if hit:
+                    mujoco.mj_collision(model, data)
+                    if data.ncon:
+                        hits[row] = index[row]
+                        continue
+                    index[row] += 1
+                else:
+                    index[row] += 1 + int(best * n[row])
+                if index[row] <= n[row]:
+                    going.append(row)
+            active = np.array(going, dtype=np.int64)
+        return hits
