@@ -264,6 +264,12 @@ class CollisionChecker:
         self._plane_pairs = plane[:, 0]
         self._pair_bodies = self.model.geom_bodyid[self._pairs]
         self._radius_sum = np.where(plane, 0.0, self.model.geom_rbound[self._pairs]).sum(axis=1)
+        # The loop backend's bounds: per pair its second geom's centre less its first's; a
+        # plane's z axis (row-major xmat) dotted with that is the height above it.
+        self._spheres = int(np.count_nonzero(~self._plane_pairs))
+        self._normal_columns = (self._pairs[self._spheres:, :1] * 9
+                                + np.arange(2, 9, 3)).ravel()
+        self._first_ids, self._second_ids = self._pairs[:, 0].tolist(), self._pairs[:, 1].tolist()
         self._filter: CompiledFilter | None = None
         if backend == "compiled":
             self._filter = CompiledFilter(self.model, self._data, self.dof, self._pairs)
@@ -555,38 +561,36 @@ class CollisionChecker:
         still = np.flatnonzero(~moving.any(axis=1))
         if len(still):
             hits[still] = np.where(self._n_contacts_loop(q0[still]) == 0, -1, 0)
-        # A pair that does not move never limits a step: it sorts after every moving one,
-        # past the first exact distance, which ends the search.
         first, second = self._pairs[:, 0], self._pairs[:, 1]
-        spheres = int(np.count_nonzero(~self._plane_pairs))  # planes come last
-        sphere_first, sphere_second = first[:spheres], second[:spheres]
-        plane_first, plane_second = first[spheres:], second[spheres:]
-        first_ids, second_ids, pair_rates = first.tolist(), second.tolist(), pair_rate.tolist()
+        spheres, normal_columns = self._spheres, self._normal_columns
+        first_ids, second_ids, pair_rates = self._first_ids, self._second_ids, pair_rate.tolist()
         margin = self.resolution + DISTANCE_TOLERANCE
         model, geom_distance = self.model, mujoco.mj_geomDistance
         data = self._data
         qpos = np.broadcast_to(model.qpos0, (len(q0), model.nq)).copy()
         index = np.zeros(len(q0), dtype=np.int64)
         active = np.flatnonzero(moving.any(axis=1))
+        # A pair that does not move never limits a step: it sorts after every moving one,
+        # past the first exact distance, which ends the search.
+        denominator = np.where(moving, pair_rate, 1.0)
+        excluded = np.where(moving, 0.0, np.inf)
         centre = np.empty((len(q0), model.ngeom, 3))
-        frame = np.empty((len(q0), model.ngeom, 9))
+        frame = np.empty((len(q0), model.ngeom * 9))
         while len(active):
-            qpos[active, : self.dof] = (q0[active] + (index[active] / n[active])[:, None]
-                                        * delta[active])
             for at, row in enumerate(active.tolist()):
+                qpos[row, : self.dof] = q0[row] + (index[row] / n[row]) * delta[row]
                 data.qpos[:] = qpos[row]
                 mujoco.mj_kinematics(model, data)
-                centre[at], frame[at] = data.geom_xpos, data.geom_xmat
+                centre[at], frame[at] = data.geom_xpos, data.geom_xmat.ravel()
             # Lower bounds from bounding spheres (half-spaces for planes) ...
-            at_centre, at_frame = centre[: len(active)], frame[: len(active)]
-            gap = at_centre[:, sphere_first] - at_centre[:, sphere_second]
-            normal = at_frame[:, plane_first][:, :, 2::3]  # each plane's z axis (row-major)
-            above = np.einsum("mij,mij->mi", normal,
-                              at_centre[:, plane_second] - at_centre[:, plane_first])
-            bound = np.concatenate([np.sqrt(np.einsum("mij,mij->mi", gap, gap)), above],
-                                   axis=1) - self._radius_sum
-            limits = np.divide(bound - margin, pair_rate[active], where=moving[active],
-                               out=np.full(bound.shape, np.inf))
+            size = len(active)
+            apart = centre[:size, second] - centre[:size, first]
+            normal = frame[:size, normal_columns].reshape(size, -1, 3)
+            bound = np.concatenate(
+                [np.sqrt(np.einsum("mij,mij->mi", apart[:, :spheres], apart[:, :spheres])),
+                 np.einsum("mij,mij->mi", normal, apart[:, spheres:])], axis=1
+            ) - self._radius_sum
+            limits = (bound - margin) / denominator[active] + excluded[active]
             orders = np.argsort(limits, axis=1, kind="stable")
             going = []
             for row, order, limit in zip(active.tolist(), orders.tolist(), limits.tolist(),
