@@ -28,6 +28,9 @@ DONE, TOO_FEW_FREE, TOO_MANY_DRAWS = 0, 1, 2
 #: The flags the kernels take, as run-time booleans: every caller then shares one
 #: compiled version of them (a literal ``True`` would be typed, and compiled, apart).
 _FLAGS = np.array([False, True])
+#: Counts and offsets as run-time ints, for the same reason: numba compiles a kernel called
+#: with a literal ``1`` or ``0`` apart from the same kernel called with a variable.
+_COUNTS = np.array([0, 1])
 
 
 def random_chain(arm: Arm, rng: np.random.Generator, n_waypoints: int,
@@ -104,7 +107,7 @@ def _links_free(bound, chain, links, count, lever, resolution, verdicts):
 def _chain(rng, lower, upper, n, bound, lever, resolution, chain, rounds):
     """``random_reachable``'s walk (its docstring) into ``chain`` (n + 1, dof). Returns
     (status, rows had, rows wanted) of the last sampling (for the error message)."""
-    status, have = _free_rows(rng, lower, upper, bound, n + 1, chain, 0, rounds)
+    status, have = _free_rows(rng, lower, upper, bound, n + 1, chain, _COUNTS[0], rounds)
     if status != DONE:
         return status, have, n + 1
     verdicts = np.zeros(n + 2, dtype=np.int64)  # link i: 0 unknown, 1 free, 2 collides
@@ -115,7 +118,7 @@ def _chain(rng, lower, upper, n, bound, lever, resolution, chain, rounds):
             # The link the walk stands at and every unchecked one after the next, in one
             # call, as the generator asks them.
             links[0] = index
-            count = 1
+            count = _COUNTS[1]
             for i in range(index + 2, n + 1):
                 if verdicts[i] == 0:
                     links[count] = i
@@ -133,12 +136,13 @@ def _chain(rng, lower, upper, n, bound, lever, resolution, chain, rounds):
             if index > 1:
                 index -= 1  # redraw the configuration we came from (checked again below)
             else:
-                status, have = _free_rows(rng, lower, upper, bound, 1, chain, 0, rounds)
+                status, have = _free_rows(rng, lower, upper, bound, _COUNTS[1], chain, _COUNTS[0],
+                                          rounds)
                 if status != DONE:
                     return status, have, 1
                 verdicts[1] = 0
                 continue
-        status, have = _free_rows(rng, lower, upper, bound, 1, chain, index, rounds)
+        status, have = _free_rows(rng, lower, upper, bound, _COUNTS[1], chain, index, rounds)
         if status != DONE:
             return status, have, 1
         verdicts[index] = 0
