@@ -495,24 +495,17 @@ class CollisionChecker:
         collides = np.zeros(len(q0), dtype=bool)
         first = np.full(len(q0), np.nan)
         contacts: list[tuple[Contact, ...]] = [() for _ in range(len(q0))]
-        if self.backend == "compiled":
-            index = self._compiled().paths(np.ascontiguousarray(q0),
-                                           np.ascontiguousarray(q1), steps, True)
+        if self.backend in ("compiled", "loop"):
+            # Each path's first colliding grid index (−1 if free).
+            index = (self._compiled().paths(np.ascontiguousarray(q0), np.ascontiguousarray(q1),
+                                            steps, True)
+                     if self.backend == "compiled" else self._first_hits_advancing(q0, q1, steps))
             for path in np.flatnonzero(index >= 0):
                 collides[path] = True
                 first[path] = index[path] / steps[path]
                 if want_contacts:
                     sample = q0[path] + first[path] * (q1[path] - q0[path])
                     contacts[path] = self.contacts(sample)
-            return collides, first, contacts, counts
-        if self.backend == "loop":
-            hits = self._first_hits_advancing(q0, q1, steps)
-            for row in np.flatnonzero(hits >= 0):
-                collides[row] = True
-                first[row] = hits[row] / steps[row]
-                if want_contacts:
-                    sample = q0[row] + first[row] * (q1[row] - q0[row])
-                    contacts[row] = self.contacts(sample)
             return collides, first, contacts, counts
         owner = np.repeat(np.arange(len(q0)), counts)
         starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
@@ -598,9 +591,10 @@ class CollisionChecker:
                 rates = pair_rates[row]
                 # ... then exact distances, nearest-in-time first, only while a pair's
                 # bound could still be the one that limits the step (the path's sample
-                # placed again: the model holds one at a time).
-                data.qpos[:] = qpos[row]
-                mujoco.mj_kinematics(model, data)
+                # placed again where several share the model, which holds one at a time).
+                if size > 1:
+                    data.qpos[:] = qpos[row]
+                    mujoco.mj_kinematics(model, data)
                 best, hit = np.inf, False
                 for k in order:
                     if limit[k] >= best:
