@@ -7,6 +7,7 @@
 from __future__ import annotations
 
 import copy
+import math
 import os
 
 # The one place MUJOCO_GL is chosen: mujoco picks its GL backend when first imported, and
@@ -149,14 +150,26 @@ CHECKED_SUCCESSORS: dict[str, tuple[str, int]] = {
 }
 ENV_SPECS.update({new: {**copy.deepcopy(ENV_SPECS[old]), "checked_moves": moves}
                   for old, (new, moves) in CHECKED_SUCCESSORS.items()})
+#: Ids whose random task draws its chain of configurations within one turn about each
+#: joint's zero (``task_joint_range`` [−π, π]; the id before draws them anywhere in the
+#: ±2π limits): the arm starts, and the chain that makes the waypoints runs, where a
+#: cell's work is usually taught, and every turn branch stays an action. Chains of ±2π
+#: paths collided so often that drawing one was half of a reset (docs/training.md).
+ONE_TURN_SUCCESSORS: dict[str, str] = {
+    "IKBranch/UR5e-v3": "IKBranch/UR5e-v4",
+}
+ENV_SPECS.update({new: {**copy.deepcopy(ENV_SPECS[old]),
+                        "task_joint_range": [[-math.pi, math.pi]] * 6}
+                  for old, new in ONE_TURN_SUCCESSORS.items()})
 ENV_IDS: tuple[str, ...] = tuple(ENV_SPECS)
 
 
 def _latest(env_id: str) -> str:
-    """The newest generation of ``env_id`` among the ids that see further or check less."""
+    """The newest generation of ``env_id`` among the ids that see further, check less or
+    draw their tasks within one turn."""
     for successors in (ONWARD_SUCCESSORS, CHECKED_SUCCESSORS):
         env_id = successors.get(env_id, (env_id,))[0]
-    return env_id
+    return ONE_TURN_SUCCESSORS.get(env_id, env_id)
 
 
 #: The ids of the current generation, in ``ENV_IDS`` order of their lines.

@@ -25,6 +25,7 @@ from ikbranch_gym.envs.resets import RESET_OPTIONS, begin_episodes
 from ikbranch_gym.envs.seeds import TRAIN_SCENES
 from ikbranch_gym.envs.task_frame import FramedArm, TaskFrame
 from ikbranch_gym.envs.tasks import TASKS, Task
+from ikbranch_gym.envs.tasks.base import RangedArm
 from ikbranch_gym.envs.tasks.file_task import FileTask
 from ikbranch_gym.envs.tasks.waypoint_file import read_waypoints
 from ikbranch_gym.envs.tool_axis import ToolAxisArm, axis_angles, tilt_directions
@@ -103,6 +104,26 @@ def _check_job_options(arm: Arm, task: str, max_joint_step: Any, singularity_mar
                 or not 0.0 <= float(margin) < upper):
             raise ValueError(f"{name} must be a finite number >= 0"
                              + (" below π/2 (rad)" if angle else " (m)") + f", got {margin!r}")
+
+
+def _joint_range(arm: Arm, task: str, joint_range: Any) -> np.ndarray:
+    """``task_joint_range`` as a (dof, 2) array: the random task's only, one [low, high]
+    per joint inside the arm's limits (rad, m)."""
+    if task != "random":
+        raise ValueError(f"task_joint_range is for task='random', not {task!r}")
+    try:
+        value = np.array(joint_range, dtype=np.float64)
+    except (TypeError, ValueError):
+        value = np.empty(0)
+    if value.shape != (arm.dof, 2) or not np.all(np.isfinite(value)):
+        raise ValueError(f"task_joint_range must be {arm.dof} pairs [low, high] of finite "
+                         f"numbers (rad, m), got {joint_range!r}")
+    limits = arm.joint_limits
+    for j, (low, high) in enumerate(value):
+        if not limits[j, 0] <= low < high <= limits[j, 1]:
+            raise ValueError(f"task_joint_range: joint {j + 1}'s [{low}, {high}] is not a "
+                             f"range inside its limits [{limits[j, 0]}, {limits[j, 1]}]")
+    return value
 
 
 def _check_numbers(collision_penalty: float, invalid_penalty: float,
@@ -260,6 +281,7 @@ class IKBranchEnv(gym.Env):
     task_units            None                    "m" or "mm": of its x, y, z (None: the format's)
     task_columns          None                    further columns it may carry (passed through)
     task_skip_unreachable False                   leave out the rows no branch reaches
+    task_joint_range      None                    random task: [low, high] per joint (None: limits)
     max_joint_step        None                    process continuity: step limit (rad), "auto"
     singularity_margin    None                    no branch this near a wrist/elbow singular (rad)
     shoulder_margin       None                    no branch this near the shoulder singularity (m)
@@ -398,6 +420,7 @@ class IKBranchEnv(gym.Env):
         task_units: str | None = None,
         task_columns: list[str] | None = None,
         task_skip_unreachable: bool = False,
+        task_joint_range: list[list[float]] | None = None,
         max_joint_step: float | str | None = None,
         singularity_margin: float | None = None,
         shoulder_margin: float | None = None,
@@ -429,6 +452,9 @@ class IKBranchEnv(gym.Env):
         self._generator = self._task_generator(task, task_file, task_start, task_points_abc,
                                                task_segments, task_units, task_columns,
                                                task_skip_unreachable)
+        if task_joint_range is not None:
+            self._task_arm = cast(Arm, RangedArm(
+                self._task_arm, _joint_range(self.arm, task, task_joint_range)))
         _check_job_options(self.kinematic_arm, task, max_joint_step, singularity_margin,
                            shoulder_margin)
         self._generator.check_arm(self._task_arm, scene)

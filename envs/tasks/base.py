@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol, cast
+from typing import Any, Protocol, cast
 
 import numpy as np
 
@@ -132,6 +132,20 @@ def sample_free_configurations(
         f"{arm.name}: found only {have} of {count} collision-free configurations in "
         f"{max_rounds} rounds; the scene leaves too little free space"
     )
+
+
+class RangedArm:
+    """``arm`` whose random draws stay inside ``joint_range`` (dof, 2) (rad, m): its
+    ``joint_limits`` for the task generators that draw configurations inside them;
+    everything else (``fk``, the branches, the real limits of the moves) is the arm's
+    own."""
+
+    def __init__(self, arm: Arm, joint_range: np.ndarray) -> None:
+        self.arm = arm
+        self.joint_limits = joint_range
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.arm, name)
 
 
 def require_pose_arm(arm: Arm, scene: str) -> None:
