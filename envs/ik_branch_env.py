@@ -223,7 +223,10 @@ class IKBranchEnv(gym.Env):
 
     ## Starting state
     ``reset`` draws a task from the env's ``np_random`` (seed it with ``reset(seed=…)``);
-    the arm stands at the task's start configuration. With ``task="paper_transfer"`` the
+    the arm stands at the task's start configuration. The ``random`` task draws a chain of
+    collision-free configurations joined by collision-free paths inside the joint limits,
+    or inside ``task_joint_range`` ([low, high] per joint): its first is the start, the
+    poses of the others are the waypoints. With ``task="paper_transfer"`` the
     arm already stands at position 1: its first step only picks that branch, at no cost.
     With ``scene="random_clutter"`` and ``scene_seed=None`` every reset first lays a new
     clutter (its seed drawn from ``np_random`` in ``scene_seeds``, ``info["scene_seed"]``);
@@ -297,6 +300,15 @@ class IKBranchEnv(gym.Env):
     ===================== ======================= ===========================================
 
     ## Version history
+    - UR5e **-v4** (2026-12-06): the random task draws its chain of configurations (the
+      start, and the configurations whose poses are the waypoints) within one turn of each
+      joint's zero (``task_joint_range`` [−π, π] for every joint), where UR5e-v3 draws them
+      anywhere in the ±2π limits. Every turn of every waypoint stays a branch to choose
+      (256). Chains whose paths turned joints by up to two revolutions collided so often
+      that drawing a task was about half of a reset. Scenes, observations, rewards and
+      collision verdicts are UR5e-v3's, which stays registered for its published models.
+      ``task_joint_range`` is a new argument of every id whose task is ``random`` (None,
+      the arm's limits, by default).
     - KukaKR6 **-v2** (2026-12-05): the observation also shows, per branch of the next
       waypoint, the least travel of the next two moves along paths the env has checked to
       be collision-free (``onward_moves=2``, ``free_travel_onward``), as Anthropomorphic-v4
@@ -389,6 +401,9 @@ class IKBranchEnv(gym.Env):
 
     # Gymnasium's Env declares metadata a plain attribute (no ClassVar), as here.
     metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 4}  # noqa: RUF012
+    #: The arm tasks are drawn for: ``arm`` in the task frame (``FramedArm``), inside
+    #: ``task_joint_range`` (``RangedArm``).
+    _task_arm: Arm
 
     def __init__(
         self,
@@ -536,8 +551,8 @@ class IKBranchEnv(gym.Env):
                                     None if self.tool is None else self.tool.tcp)
         # A FramedArm answers everything an Arm does (fk and ik in the task frame, the
         # rest the arm's own), so tasks and chains take it as the arm.
-        self._task_arm: Arm = (self.arm if self.task_frame.identity
-                               else cast(Arm, FramedArm(self.arm, self.task_frame)))
+        self._task_arm = (self.arm if self.task_frame.identity
+                          else cast(Arm, FramedArm(self.arm, self.task_frame)))
         if scene == "file":
             return {"scene_file": scene_file, **options}
         return options if scene == "milling_cell" else {}

@@ -29,7 +29,8 @@ def random_reachable(
     is_free: FreePredicate,
     is_path_free: PathPredicate,
 ) -> Task:
-    """Start and waypoints from a chain of configurations drawn inside the limits.
+    """Start and waypoints from a chain of configurations drawn inside ``arm``'s
+    ``joint_limits`` (an env's ``task_joint_range`` where it has one: ``RangedArm``).
 
     Every configuration is collision-free and so is the straight joint-space path from each
     to the next: a draw whose path from the previous one collides is replaced by a fresh

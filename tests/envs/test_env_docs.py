@@ -110,7 +110,7 @@ CURRENT = {
     "IKBranch/DualPPRPRR-v2": "IKBranch/DualPPRPRR-v1",
     "IKBranch/RodMechanism-v3": "IKBranch/RodMechanism-v2",
     "IKBranch/KukaKR6-v2": "IKBranch/KukaKR6-v1",  # see ONWARD
-    "IKBranch/UR5e-v3": "IKBranch/UR5e-v2",  # see CHECKED
+    "IKBranch/UR5e-v4": "IKBranch/UR5e-v3",  # see ONE_TURN
     "IKBranch/IRB4600ToolTransfer-v1": "IKBranch/IRB4600ToolTransfer-v0",
     "IKBranch/IRB2600Screwing-v1": "IKBranch/IRB2600Screwing-v0",
     "IKBranch/KukaKR6Deburring-v0": None,  # a new job, no generation before
@@ -120,10 +120,14 @@ CURRENT = {
 ONWARD = {"IKBranch/Anthropomorphic-v4": 3, "IKBranch/UR5e-v2": 2, "IKBranch/KukaKR6-v2": 2}
 DRAWN_BEFORE = {"IKBranch/Anthropomorphic-v3": "IKBranch/Anthropomorphic-v2",
                 "IKBranch/UR5e-v1": "IKBranch/UR5e-v0", "IKBranch/UR5e-v2": "IKBranch/UR5e-v1",
-                "IKBranch/KukaKR6-v1": "IKBranch/KukaKR6-v0"}
+                "IKBranch/KukaKR6-v1": "IKBranch/KukaKR6-v0",
+                "IKBranch/UR5e-v3": "IKBranch/UR5e-v2"}
 #: Ids of the current generation that check the moves into the next waypoint until so
 #: many are free; the id each succeeds sees several moves ahead and stays registered.
 CHECKED = {"IKBranch/UR5e-v3": 8}
+#: Ids of the current generation whose random task draws within one turn of each joint's
+#: zero; the id each succeeds checks moves until so many are free and stays registered.
+ONE_TURN = {"IKBranch/UR5e-v4": [[-np.pi, np.pi]] * 6}
 
 
 def test_the_deburring_job_is_the_kr6_on_its_cell_with_a_free_burr():
@@ -161,6 +165,11 @@ def test_every_required_id_is_registered_and_makes_what_it_says():
             assert (now.pop("checked_moves"), then.get("checked_moves")) == (
                 CHECKED[env_id], None), env_id
             assert before in ONWARD and now == then, env_id
+            continue
+        if env_id in ONE_TURN:
+            assert (now.pop("task_joint_range"), then.get("task_joint_range")) == (
+                ONE_TURN[env_id], None), env_id
+            assert before in CHECKED and now == then, env_id
             continue
         assert (now.pop("collision_shapes"), then.pop("collision_shapes")) == (
             "drawn", "inscribed"), env_id
@@ -205,6 +214,13 @@ BAD_KWARGS = [
     ({"task": "tool_changes"}, "milling_cell"),
     ({"task": "deburring"}, "needs scene='deburring_cell'"),
     ({"scene": "deburring_cell", "arm": "dual_rrp_rpp", "task": "random"}, "six-DOF"),
+    ({"task_joint_range": [[0.0, 1.0]] * 5}, "6 pairs [low, high]"),
+    ({"task_joint_range": [[0.0, float("nan")]] * 6}, "finite numbers"),
+    ({"task_joint_range": "all"}, "6 pairs [low, high]"),
+    ({"task_joint_range": [[1.0, 0.0]] * 6}, "joint 1's [1.0, 0.0] is not a range"),
+    ({"task_joint_range": [[-1.0, 1.0]] * 5 + [[0.0, 10.0]]}, "joint 6's [0.0, 10.0]"),
+    ({"scene": "milling_cell", "task": "tool_changes", "task_joint_range": [[0.0, 1.0]] * 6},
+     "task_joint_range is for task='random'"),
 ]
 
 

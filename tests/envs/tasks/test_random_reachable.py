@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
+import ikbranch_gym  # noqa: F401  (registers the ids)
 from ikbranch_gym.envs.kinematics import ARM_NAMES, make_arm
 from ikbranch_gym.envs.tasks import TASKS
+from ikbranch_gym.envs.tasks.base import RangedArm
 from tests.envs.tasks.helpers import (
     all_paths_free,
     assert_every_waypoint_has_a_free_branch,
@@ -104,3 +107,39 @@ def test_no_link_is_checked_while_its_start_may_still_be_redrawn():
         assert len(asked) == len(set(asked))
         assert_same_task(task, generator(arm, np.random.default_rng(seed), 6, is_free,
                                          one_at_a_time))
+
+
+def test_a_joint_range_keeps_every_draw_inside_it_and_the_arm_as_it_is():
+    arm = make_arm("ur5e")
+    one_turn = np.clip(arm.joint_limits, -np.pi, np.pi)
+    ranged = RangedArm(arm, one_turn)
+    q = np.random.default_rng(0).uniform(-6.0, 6.0, (4, arm.dof))
+    np.testing.assert_array_equal(ranged.fk(q), arm.fk(q))
+    assert ranged.n_branches == arm.n_branches == 256
+    for seed in range(5):
+        task = generator(ranged, np.random.default_rng(seed), 4, half_space(arm),
+                         all_paths_free)
+        assert np.all(np.abs(task.start) <= np.pi)
+        # each waypoint is the pose of a configuration inside the range: one of its branches
+        candidates, valid = arm.ik(task.poses)
+        inside = valid & np.all(np.abs(candidates) <= np.pi + 1e-9, axis=-1)
+        assert inside.any(axis=-1).all()
+        assert (valid & ~inside).any(axis=-1).all()  # the other turns stay branches
+    # The arm's own limits reach two turns: unranged, the starts leave [−π, π].
+    starts = np.array([generator(arm, np.random.default_rng(seed), 4, half_space(arm),
+                                 all_paths_free).start for seed in range(5)])
+    assert np.any(np.abs(starts) > np.pi)
+
+
+def test_ur5e_v4_draws_its_tasks_within_one_turn_and_v3_does_not():
+    kept = {}
+    for env_id in ("IKBranch/UR5e-v3", "IKBranch/UR5e-v4"):
+        env = gym.make(env_id).unwrapped
+        starts = []
+        for seed in range(4):
+            env.reset(seed=seed)
+            starts.append(env.task.start)
+            assert env.action_space.n == 256
+        kept[env_id] = np.abs(np.array(starts)).max()
+        env.close()
+    assert kept["IKBranch/UR5e-v4"] <= np.pi < kept["IKBranch/UR5e-v3"]
