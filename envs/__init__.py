@@ -215,7 +215,7 @@ def warm_up(processes: int = 1) -> None:
     # arm with hundreds of branches (factored travel summaries), and a vector env (a stack
     # of scenes).
     for env_id in ("IKBranch/Anthropomorphic-v4", "IKBranch/ToolTransfer-v2",
-                   "IKBranch/UR5e-v3"):
+                   "IKBranch/UR5e-v4"):
         env = gym.make(env_id, n_waypoints=2)
         env.reset(seed=0)
         unwrapped = env.unwrapped
