@@ -56,7 +56,11 @@ endef
 export EXTRAS
 
 # Every module of the package imported (so every dependency it loads), what the sweep
-# loads when it runs (Ray Tune), and the test tools.
+# loads when it runs (Ray Tune), the test tools, and what is imported only once work
+# starts: torch's optimisers import torch._dynamo (and sympy) at their first step, the
+# aggregate's intervals rliable's bootstrap (statsmodels, arch), the plots matplotlib and
+# PIL, Tune's logger tensorboardX, a wheel build setuptools. Left out, every process that
+# trains or plots compiled some 2,000 modules from source again.
 define BYTECODE
 import importlib, pkgutil, warnings
 warnings.simplefilter("ignore")
@@ -65,6 +69,7 @@ for module in pkgutil.walk_packages(ikbranch_gym.__path__, "ikbranch_gym."):
     if not module.name.endswith("__main__"):
         importlib.import_module(module.name)
 import coal, hypothesis, pytest, ray.tune, scipy.optimize, xdist
+import matplotlib.pyplot, PIL.Image, rliable.library, setuptools, tensorboardX, torch._dynamo
 endef
 export BYTECODE
 
