@@ -60,7 +60,7 @@ export EXTRAS
 # starts: torch's optimisers import torch._dynamo (and sympy) at their first step, the
 # aggregate's intervals rliable's bootstrap (statsmodels, arch), the plots matplotlib and
 # PIL, Tune's logger tensorboardX, a wheel build setuptools. Left out, every process that
-# trains or plots compiled some 2,000 modules from source again.
+# trains or plots compiled them from source again (Ray's own processes still do theirs).
 define BYTECODE
 import importlib, pkgutil, warnings
 warnings.simplefilter("ignore")

@@ -23,7 +23,7 @@ from tests.envs.env_cases import IDS, assert_same, choose, make, rollout, same_i
 @pytest.mark.parametrize("env_id", IDS)
 def test_gymnasium_check_env_without_warnings(env_id):
     # Rendering, which the checker would do at the default size in an env of its own, is
-    # Gymnasium's render check in the next test.
+    # Gymnasium's render check in test_rgb_array_render_shows_a_real_frame.
     env = make(env_id)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
