@@ -60,9 +60,12 @@ export EXTRAS
 # starts: torch's optimisers import torch._dynamo (and sympy) at their first step, the
 # aggregate's intervals rliable's bootstrap (statsmodels, arch), the plots matplotlib and
 # PIL, Tune's logger tensorboardX, a wheel build setuptools. Left out, every process that
-# trains or plots compiled them from source again (Ray's own processes still do theirs).
+# trains or plots compiled them from source again. Ray's own processes (its dashboard, its
+# agents, the autoscaler's monitor and the log monitor, started with every cluster) load
+# their modules from three of its folders, the dashboard's by walking them: those folders
+# whole.
 define BYTECODE
-import importlib, pkgutil, warnings
+import compileall, importlib, os, pkgutil, warnings
 warnings.simplefilter("ignore")
 import ikbranch_gym
 for module in pkgutil.walk_packages(ikbranch_gym.__path__, "ikbranch_gym."):
@@ -70,6 +73,8 @@ for module in pkgutil.walk_packages(ikbranch_gym.__path__, "ikbranch_gym."):
         importlib.import_module(module.name)
 import coal, hypothesis, pytest, ray.tune, scipy.optimize, xdist
 import matplotlib.pyplot, PIL.Image, rliable.library, setuptools, tensorboardX, torch._dynamo
+for folder in ("_private", "autoscaler", "dashboard"):
+    compileall.compile_dir(os.path.join(os.path.dirname(ray.__file__), folder), quiet=1)
 endef
 export BYTECODE
 

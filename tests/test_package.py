@@ -168,8 +168,12 @@ def test_the_wheel_installs_into_a_fresh_venv_with_core_extras_then_trains(tmp_p
                    capture_output=True, timeout=300)
     (wheel,) = dist.glob("ikbranch_gym-*.whl")
     venv = tmp_path / "venv"
-    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=300)
-    python, pip = str(venv / "bin" / "python"), [str(venv / "bin" / "python"), "-m", "pip"]
+    # Without a pip of its own (bootstrapping one is most of a venv's creation): this
+    # session's pip installs into it (``--python``), as the venv's own would.
+    subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(venv)], check=True,
+                   timeout=300)
+    python = str(venv / "bin" / "python")
+    pip = [sys.executable, "-m", "pip", "--python", python]
     subprocess.run([*pip, "install", "--quiet", "--no-compile", str(wheel)], check=True,
                    capture_output=True, timeout=600)
     user = _user_folder(tmp_path)
