@@ -290,9 +290,19 @@ def test_every_numerical_solution_is_a_returned_branch(cls):
         def residual(x, pose=pose):
             return (arm.fk(x) - pose)[:3].ravel()
 
+        def jacobian(x, pose=pose):
+            # scipy's "2-point" differences (its step, stepping back at an upper bound),
+            # every point in one fk call: the residual's Python overhead is the cost.
+            step = np.sqrt(np.finfo(float).eps) * np.maximum(1.0, np.abs(x))
+            step = np.where(x + step > upper, -step, step)
+            points = np.vstack([x, x + np.diag(step)])
+            values = (arm.fk(points) - pose)[:, :3].reshape(len(points), -1)
+            return ((values[1:] - values[0]) / step[:, None]).T
+
         for start in rng.uniform(lower, upper, size=(30, arm.dof)):
             fit = least_squares(
-                residual, start, bounds=(lower, upper), xtol=1e-15, ftol=1e-15, gtol=1e-15
+                residual, start, jac=jacobian, bounds=(lower, upper), xtol=1e-15, ftol=1e-15,
+                gtol=1e-15
             )
             if np.abs(fit.fun).max() > 1e-10:
                 continue  # a local minimum, not a solution
