@@ -329,17 +329,43 @@ def _allowed(ep, r, w, b):
     return ep.valid[r, w, b] and not _blocked(ep, r, w, b)
 
 
+# A field of ``ep`` read in a loop over the K branches costs a reference count taken and
+# dropped per read, more than the test it serves: the loops below read each field once.
+@njit(inline="always")
+def _allowed_row(ep, r, w, out):
+    """``out[b]`` = :func:`_allowed` (row ``r``, waypoint ``w``, branch b) for every b."""
+    valid = ep.valid
+    if not ep.inside[r, w]:  # no process segment: nothing is blocked
+        for b in range(len(out)):
+            out[b] = valid[r, w, b]
+        return
+    for b in range(len(out)):
+        out[b] = valid[r, w, b] and not _blocked(ep, r, w, b)
+
+
+@njit(inline="always")
+def _blocked_row(ep, r, w, out):
+    """``out[b]`` = :func:`_blocked` (row ``r``, waypoint ``w``, branch b) for every b."""
+    if not ep.inside[r, w]:
+        out[:] = False
+        return
+    for b in range(len(out)):
+        out[b] = _blocked(ep, r, w, b)
+
+
 @njit
 def masks(ep, rows, out):
     """``out[i]`` (K): the action mask of row ``rows[i]`` — the valid branches of its next
     waypoint that do not reconfigure the arm inside a process segment; every branch once
     its episode is over (any action then)."""
-    k = ep.valid.shape[2]
+    index, lengths = ep.index, ep.lengths
     for i in range(len(rows)):
         r = rows[i]
-        w = ep.index[r]
-        for b in range(k):
-            out[i, b] = True if w >= ep.lengths[r] else _allowed(ep, r, w, b)
+        w = index[r]
+        if w >= lengths[r]:
+            out[i] = True
+        else:
+            _allowed_row(ep, r, w, out[i])
 
 
 # ---------------------------------------------------------------------------- survey
@@ -376,15 +402,17 @@ def _slot_paths(ep, bound, live):
     lines = np.empty(len(live) * k, dtype=np.int64)
     branches = np.empty(len(live) * k, dtype=np.int64)
     count = 0
+    allowed, endpoint = np.empty(k, dtype=np.bool_), ep.endpoint
     for line in range(len(live)):
         r = live[line]
         w = ep.index[r]
         still = ep.free_start[r] and w == 0
+        _allowed_row(ep, r, w, allowed)
         for b in range(k):
-            if not _allowed(ep, r, w, b):
+            if not allowed[b]:
                 continue
             if still:
-                collision[line, b] = ep.endpoint[r, 0, b]
+                collision[line, b] = endpoint[r, 0, b]
                 continue
             lines[count], branches[count] = line, b
             count += 1
@@ -422,9 +450,10 @@ def _least_travel_paths(ep, bound, live):
         for i in range(len(lines)):
             collision[lines[i], branches[i]] = hits[i]
             free[lines[i]] += 0 if hits[i] else 1
+    checked = ep.checked
     for line in range(count):
         for i in range(done[line], size[line]):
-            ep.checked[live[line], order[line, i]] = False
+            checked[live[line], order[line, i]] = False
     _price_rows(ep, live, collision)
     for line in range(count):
         for i in range(done[line], size[line]):
@@ -440,17 +469,20 @@ def _travel_order(ep, live, collision):
     count, k = len(live), ep.valid.shape[2]
     order = np.empty((count, k), dtype=np.int64)
     size = np.zeros(count, dtype=np.int64)
+    checked, endpoint = ep.checked, ep.endpoint
+    mask = np.empty(k, dtype=np.bool_)
     for line in range(count):
         r = live[line]
         w = ep.index[r]
         still = ep.free_start[r] and w == 0
         allowed = np.empty(k, dtype=np.int64)
+        _allowed_row(ep, r, w, mask)
         for b in range(k):
-            ep.checked[r, b] = True
-            if not _allowed(ep, r, w, b):
+            checked[r, b] = True
+            if not mask[b]:
                 continue
             if still:
-                collision[line, b] = ep.endpoint[r, 0, b]
+                collision[line, b] = endpoint[r, 0, b]
                 continue
             allowed[size[line]] = b
             size[line] += 1
@@ -530,8 +562,7 @@ def _price_rows(ep, live, collision):
         valid[line] = ep.valid[r, w]
         waypoints[line], free_start[line], lengths[line] = w, ep.free_start[r], ep.lengths[r]
         verdicts[line, 0] = collision[line]
-        for b in range(k):
-            blocked[line, 0, b] = _blocked(ep, r, w, b)
+        _blocked_row(ep, r, w, blocked[line, 0])
     values = np.empty((ep.values.shape[1], count, 1, k))
     flags = np.empty((3, count, 1, k), dtype=np.bool_)
     numbers = ep.numbers
@@ -744,7 +775,7 @@ def _cost_bounds(ep, rows, waypoints, lines, mid, far, targets, costs):
     estimate = np.full((count, k), np.inf)
     known = np.zeros((count, k), dtype=np.bool_)
     at = np.full(count, -1, dtype=np.int64)
-    weights = ep.weights
+    weights, valid, endpoint = ep.weights, ep.valid, ep.endpoint
     across = np.empty((dof, k))
     travel = np.empty(k)
     for i in range(len(lines)):
@@ -755,7 +786,7 @@ def _cost_bounds(ep, rows, waypoints, lines, mid, far, targets, costs):
             for d in range(k):
                 across[j, d] = far[i, d, j]
         for c in range(k):
-            if ep.valid[r, w, c] and not ep.endpoint[r, w, c]:
+            if valid[r, w, c] and not endpoint[r, w, c]:
                 travel[:] = 0.0
                 for j in range(dof):
                     here, weight = mid[i, c, j], weights[j]
@@ -767,7 +798,7 @@ def _cost_bounds(ep, rows, waypoints, lines, mid, far, targets, costs):
         if at[m] < 0:
             r, w = rows[m], waypoints[m] + 1
             for c in range(k):
-                if ep.valid[r, w, c] and not ep.endpoint[r, w, c]:
+                if valid[r, w, c] and not endpoint[r, w, c]:
                     estimate[m, c], known[m, c] = 0.0, True
     return estimate, known, at
 
@@ -819,10 +850,11 @@ def _free_branches(ep, rows, waypoints, costs):
     that are valid, whose configuration is free and whose ``costs[m]`` is finite."""
     count, k = costs.shape
     out = np.empty((count, k), dtype=np.bool_)
+    valid, endpoint = ep.valid, ep.endpoint
     for m in range(count):
         r, w = rows[m], waypoints[m]
         for b in range(k):
-            out[m, b] = ep.valid[r, w, b] and not ep.endpoint[r, w, b] and costs[m, b] < np.inf
+            out[m, b] = valid[r, w, b] and not endpoint[r, w, b] and costs[m, b] < np.inf
     return out
 
 
@@ -947,8 +979,9 @@ def _onward_lines(ep, live, collision):
         r = live[line]
         w = ep.index[r]
         rows[m] = r
+        _allowed_row(ep, r, w, pending[m])
         for b in range(k):
-            pending[m, b] = _allowed(ep, r, w, b) and not collision[line, b]
+            pending[m, b] = pending[m, b] and not collision[line, b]
     return inner, rows, pending
 
 
@@ -978,17 +1011,21 @@ def _observe(ep, rows, live, collision, onward, ahead):
     layout, obs = ep.layout, ep.observation
     scale = ep.numbers[TRAVEL_SCALE]
     ahead_scale = scale * ep.numbers[ONWARD_MOVES]
+    q, centre, half_range = ep.q, ep.centre, ep.half_range
     for r in rows:
         obs[r] = ep.templates[r, ep.index[r]]
         for j in range(layout[Q1] - layout[Q0]):
-            value = (ep.q[r, j] - ep.centre[j]) / ep.half_range[j]
+            value = (q[r, j] - centre[j]) / half_range[j]
             obs[r, layout[Q0] + j] = min(max(value, -1.0), 1.0)
+    values = ep.values
+    allowed = np.empty(ep.valid.shape[2], dtype=np.bool_)
     for line in range(len(live)):
         r = live[line]
         w = ep.index[r]
-        for b in range(ep.valid.shape[2]):
-            travel = ep.values[r, 1, b] / scale
-            obs[r, layout[TRAVEL0] + b] = min(travel, 1.0) if _allowed(ep, r, w, b) else 1.0
+        _allowed_row(ep, r, w, allowed)
+        for b in range(len(allowed)):
+            travel = values[r, 1, b] / scale
+            obs[r, layout[TRAVEL0] + b] = min(travel, 1.0) if allowed[b] else 1.0
             obs[r, layout[PATH0] + b] = 1.0 if collision[line, b] else 0.0
             if layout[ONWARD0] >= 0:
                 obs[r, layout[ONWARD0] + b] = min(onward[line, b] / scale, 1.0)
