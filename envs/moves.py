@@ -412,21 +412,34 @@ def _onward_travel(here: np.ndarray, there: np.ndarray, rows: np.ndarray, target
     sums it (Σ_j w_j|Δq_j| in joint order), +inf elsewhere in those rows; ``rows[l, a]``
     is cleared where no target is left. Rows l, a where ``rows[l, a]`` is False are not
     written: nothing reads them (on a K = 256 arm they are most of the array, which
-    filling cost more than the rest of a survey's bookkeeping)."""
+    filling cost more than the rest of a survey's bookkeeping). A row's travel is summed
+    for every b at once, joint by joint over ``there`` laid out by joint (a loop the
+    compiler vectorises; each sum in joint order as before)."""
+    dof, k = here.shape[2], there.shape[1]
+    across = np.empty((dof, k))
+    travel = np.empty(k)
     for line in range(here.shape[0]):
+        loaded = False
         for a in range(here.shape[1]):
             if not rows[line, a]:
                 continue
+            if not loaded:
+                for j in range(dof):
+                    for b in range(k):
+                        across[j, b] = there[line, b, j]
+                loaded = True
+            travel[:] = 0.0
+            for j in range(dof):
+                start, weight = here[line, a, j], weights[j]
+                for b in range(k):
+                    travel[b] += abs(across[j, b] - start) * weight
             reached = False
-            for b in range(there.shape[1]):
-                if not targets[line, b]:
+            for b in range(k):
+                if targets[line, b]:
+                    out[line, a, b] = travel[b]
+                    reached = reached or travel[b] < np.inf
+                else:
                     out[line, a, b] = np.inf
-                    continue
-                travel = 0.0
-                for j in range(here.shape[2]):
-                    travel += abs(there[line, b, j] - here[line, a, j]) * weights[j]
-                out[line, a, b] = travel
-                reached = reached or travel < np.inf
             rows[line, a] = reached
 
 
