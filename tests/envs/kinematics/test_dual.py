@@ -291,8 +291,9 @@ def test_every_numerical_solution_is_a_returned_branch(cls):
             return (arm.fk(x) - pose)[:3].ravel()
 
         def jacobian(x, pose=pose):
-            # scipy's "2-point" differences (its step, stepping back at an upper bound),
-            # every point in one fk call: the residual's Python overhead is the cost.
+            # Forward differences with scipy's relative step, √eps·max(1, |x|) (backwards
+            # where it would leave the upper bound), every point in one fk call: the
+            # residual's Python overhead, not its arithmetic, is what the fits cost.
             step = np.sqrt(np.finfo(float).eps) * np.maximum(1.0, np.abs(x))
             step = np.where(x + step > upper, -step, step)
             points = np.vstack([x, x + np.diag(step)])
