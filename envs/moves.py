@@ -404,6 +404,28 @@ def _block_moves(origins: np.ndarray, candidates: np.ndarray, inside: np.ndarray
                     out[w, r, k] = True
 
 
+@njit(inline="always")
+def _by_joint(ends: np.ndarray, out: np.ndarray) -> None:
+    """``out[j, b]`` = ``ends[b, j]``: configurations (K, dof) laid out by joint (dof, K),
+    for :func:`_travel_to_all`."""
+    for j in range(out.shape[0]):
+        for b in range(out.shape[1]):
+            out[j, b] = ends[b, j]
+
+
+@njit(inline="always")
+def _travel_to_all(start: np.ndarray, across: np.ndarray, weights: np.ndarray,
+                   out: np.ndarray) -> None:
+    """``out[b]`` = Σ_j w_j|across[j, b] − start[j]| summed in joint order, as
+    :func:`_price` sums a move's travel, for every b at once (``across``: the ends laid
+    out by joint, :func:`_by_joint`; the loop over b is one the compiler vectorises)."""
+    out[:] = 0.0
+    for j in range(len(start)):
+        origin, weight = start[j], weights[j]
+        for b in range(len(out)):
+            out[b] += abs(across[j, b] - origin) * weight
+
+
 @njit
 def _onward_travel(here: np.ndarray, there: np.ndarray, rows: np.ndarray, targets: np.ndarray,
                    weights: np.ndarray, out: np.ndarray) -> None:
@@ -413,8 +435,7 @@ def _onward_travel(here: np.ndarray, there: np.ndarray, rows: np.ndarray, target
     is cleared where no target is left. Rows l, a where ``rows[l, a]`` is False are not
     written: nothing reads them (on a K = 256 arm they are most of the array, which
     filling cost more than the rest of a survey's bookkeeping). A row's travel is summed
-    for every b at once, joint by joint over ``there`` laid out by joint (a loop the
-    compiler vectorises; each sum in joint order as before)."""
+    for every b at once (:func:`_travel_to_all`)."""
     dof, k = here.shape[2], there.shape[1]
     across = np.empty((dof, k))
     travel = np.empty(k)
@@ -424,15 +445,9 @@ def _onward_travel(here: np.ndarray, there: np.ndarray, rows: np.ndarray, target
             if not rows[line, a]:
                 continue
             if not loaded:
-                for j in range(dof):
-                    for b in range(k):
-                        across[j, b] = there[line, b, j]
+                _by_joint(there[line], across)
                 loaded = True
-            travel[:] = 0.0
-            for j in range(dof):
-                start, weight = here[line, a, j], weights[j]
-                for b in range(k):
-                    travel[b] += abs(across[j, b] - start) * weight
+            _travel_to_all(here[line, a], across, weights, travel)
             reached = False
             for b in range(k):
                 if targets[line, b]:

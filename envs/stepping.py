@@ -47,7 +47,14 @@ from numba.experimental import structref
 
 from ikbranch_gym.envs.jit import njit
 from ikbranch_gym.envs.models.filter.kernels import bound_paths, path_steps
-from ikbranch_gym.envs.moves import _next_targets, _onward_travel, _price, _take_or_try_next
+from ikbranch_gym.envs.moves import (
+    _by_joint,
+    _next_targets,
+    _onward_travel,
+    _price,
+    _take_or_try_next,
+    _travel_to_all,
+)
 from ikbranch_gym.envs.process import UNKNOWN, move_blocked
 
 #: The flags the filter's kernels take, as run-time booleans: every caller then shares one
@@ -782,16 +789,10 @@ def _cost_bounds(ep, rows, waypoints, lines, mid, far, targets, costs):
         m = lines[i]
         r, w = rows[m], waypoints[m] + 1
         at[m] = i
-        for j in range(dof):
-            for d in range(k):
-                across[j, d] = far[i, d, j]
+        _by_joint(far[i], across)
         for c in range(k):
             if valid[r, w, c] and not endpoint[r, w, c]:
-                travel[:] = 0.0
-                for j in range(dof):
-                    here, weight = mid[i, c, j], weights[j]
-                    for d in range(k):
-                        travel[d] += abs(across[j, d] - here) * weight
+                _travel_to_all(mid[i, c], across, weights, travel)
                 estimate[m, c] = _least_second(ep, r, w + 1, c, mid[i, c], far[i], travel,
                                                targets[i], costs[i])
     for m in range(count):
