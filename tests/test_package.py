@@ -168,8 +168,8 @@ def test_the_wheel_installs_into_a_fresh_venv_with_core_extras_then_trains(tmp_p
                    capture_output=True, timeout=300)
     (wheel,) = dist.glob("ikbranch_gym-*.whl")
     venv = tmp_path / "venv"
-    # Without a pip of its own (bootstrapping one is most of a venv's creation): this
-    # session's pip installs into it (``--python``), as the venv's own would.
+    # Without a pip of its own (bootstrapping one is most of a venv's creation): the pip
+    # of the Python running the tests installs into it (``--python``), as its own would.
     subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(venv)], check=True,
                    timeout=300)
     python = str(venv / "bin" / "python")
