@@ -243,24 +243,36 @@ def _run_side_by_side(parts: tuple[str, ...]) -> None:
 
 def _warm_up_part(part: str) -> None:
     """One part of ``WARM_UP_PHASES``: the filter's configuration or path kernels (with the
-    IK driver), the random chain, or the stepping stages on a fixed cell (no chain)."""
+    IK driver), the random chain (then a turned arm's reset up to its survey and the DP
+    oracle's pass), or the stepping stages on a fixed cell (no chain)."""
     import numpy as np
 
     from ikbranch_gym.envs.ik_branch_env import IKBranchEnv
     from ikbranch_gym.envs.kinematics import compiled as kinematics
     from ikbranch_gym.envs.models import filter as collision
     from ikbranch_gym.envs.random_chain import random_chain_configurations
+    from ikbranch_gym.envs.resets import begin_episodes
 
     if part in ("configurations", "paths"):
         if part == "configurations":
             kinematics.warm_up()
         collision.warm_up(configurations=part == "configurations", paths=part == "paths")
     elif part == "chain":
+        from ikbranch_gym.agents import dp
+
         env = gym.make("IKBranch/Anthropomorphic-v4").unwrapped
         assert isinstance(env, IKBranchEnv)
         random_chain_configurations(env._task_arm, np.random.default_rng(0), 2,
                                     env.compiled_filter, env.checker.lever,
                                     env.checker.resolution)
+        # The chain takes a quarter of the stepping part's time: this process goes on to
+        # what neither the stepping part nor the stepping stages compile, the reset of an
+        # arm with turn branches up to its survey (its factored travel summaries) and the
+        # DP oracle's pass, instead of leaving it to the end in one process.
+        turned = gym.make("IKBranch/UR5e-v4", n_waypoints=2).unwrapped
+        assert isinstance(turned, IKBranchEnv)
+        begin_episodes([turned], [0], turned.compiled_filter, np.zeros(1, dtype=np.int64))
+        dp.warm_up()
     elif part == "stepping":
         fixed = gym.make("IKBranch/ToolTransfer-v2", n_waypoints=2)
         fixed.reset(seed=0)
