@@ -20,8 +20,9 @@ Columns per id:
   warm-up; ``× Reacher`` over Reacher-v5's *single* env;
 - ``oracle``: the same vector env playing dp_oracle's plan (planned at each reset, the
   planning time not counted): full-length episodes, as a trained policy plays them;
-- ``--async``: ``vectorization_mode="async"`` with two worker processes, masks from
-  ``info["action_mask"]`` (no round trip), to set beside the single env's column.
+- ``--async``: ``vectorization_mode="async"`` with one and with two worker processes,
+  masks from ``info["action_mask"]`` (no round trip), steps counted per sub-env, and the
+  two workers' rate over the one worker's.
 
 Numbers depend on the machine and its load: compare rows of one run.
 """
@@ -138,9 +139,10 @@ def vector(env_id: str, num_envs: int, seconds: float, warmup: float,
     return rate
 
 
-def async_pair(env_id: str, seconds: float, warmup: float) -> float:
-    """Steps/s of ``make_vec(..., "async")`` with two workers, both sub-envs' steps counted."""
-    venv = gym.make_vec(env_id, num_envs=2, vectorization_mode="async")
+def async_workers(env_id: str, workers: int, seconds: float, warmup: float) -> float:
+    """Steps/s of ``make_vec(..., "async")`` with ``workers`` workers (a sub-env each),
+    every sub-env's steps counted."""
+    venv = gym.make_vec(env_id, num_envs=workers, vectorization_mode="async")
     rng = np.random.default_rng(0)
     masked = env_id in envs.ENV_SPECS
     _, info = venv.reset(seed=0)
@@ -171,7 +173,7 @@ def main() -> None:
     parser.add_argument("--warmup-steps", type=int, default=20000, help="warm-up limit, steps")
     parser.add_argument("--num-envs", type=int, default=16, help="sub-envs of the vector env")
     parser.add_argument("--async", dest="asynchronous", action="store_true",
-                        help="add the make_vec async column (two workers)")
+                        help="add the make_vec async columns (one and two workers)")
     parser.add_argument("--ids", nargs="*", default=None, help="ids (default: all)")
     args = parser.parse_args()
     ids = args.ids or list(envs.ENV_IDS)
@@ -182,9 +184,9 @@ def main() -> None:
     base = reacher["step+reset/s"]
     print("| id | single: cold | in step | with resets | × Reacher | ms/reset | steps/episode "
           "| vector: with resets | × Reacher | oracle actions | × Reacher |"
-          + (" async ×2 |" if args.asynchronous else ""))
+          + (" async ×1 | async ×2 | ×2 / ×1 |" if args.asynchronous else ""))
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
-          + ("---:|" if args.asynchronous else ""))
+          + ("---:|---:|---:|" if args.asynchronous else ""))
     for env_id in [*ids, "Reacher-v5"]:
         row = reacher if env_id == "Reacher-v5" else single(
             env_id, args.seconds, args.warmup, args.warmup_steps)
@@ -198,7 +200,9 @@ def main() -> None:
         else:
             line += " | | | |"
         if args.asynchronous:
-            line += f" {async_pair(env_id, args.seconds, args.warmup):,.0f} |"
+            one, two = (async_workers(env_id, workers, args.seconds, args.warmup)
+                        for workers in (1, 2))
+            line += f" {one:,.0f} | {two:,.0f} | {two / one:.2f} |"
         print(line, flush=True)
 
 
