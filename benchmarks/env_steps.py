@@ -22,7 +22,13 @@ Columns per id:
   planning time not counted): full-length episodes, as a trained policy plays them;
 - ``--async``: ``vectorization_mode="async"`` with one and with two worker processes,
   masks from ``info["action_mask"]`` (no round trip), steps counted per sub-env, and the
-  two workers' rate over the one worker's.
+  two workers' rate over the one worker's; beside it ``lockstep``, what that ratio
+  would be if a call cost only the env's own work, on two free cores: a worker's calls
+  are timed in this process (a step, or after an episode's end the reset that
+  next-step autoreset makes of the next call), and a call of two workers takes the
+  slower of two such calls, drawn at random from them. Where the env's work dominates,
+  the measured ratio stays below it; where the pipes' round trip does, one worker pays
+  it on every call and two overlap theirs, so the measured ratio may exceed it.
 
 Numbers depend on the machine and its load: compare rows of one run.
 """
@@ -164,6 +170,34 @@ def async_workers(env_id: str, workers: int, seconds: float, warmup: float) -> f
     return steps / total
 
 
+def lockstep(env_id: str, seconds: float, warmup: float) -> float:
+    """The rate of two workers stepped in lockstep over one's, counting only the env's
+    own work (the module docstring)."""
+    env = gym.make(env_id)
+    env.action_space.seed(0)
+    rng = np.random.default_rng(0)
+    masked = env_id in envs.ENV_SPECS
+    _, info = env.reset(seed=0)
+    ended, calls = False, []
+    start = time.perf_counter()
+    while time.perf_counter() - start < warmup + seconds:
+        t0 = time.perf_counter()
+        if ended:
+            _, info = env.reset()
+            ended = False
+        else:
+            action = (int(rng.choice(np.flatnonzero(info["action_mask"]))) if masked
+                      else env.action_space.sample())
+            _, _, terminated, truncated, info = env.step(action)
+            ended = terminated or truncated
+        if t0 - start >= warmup:
+            calls.append(time.perf_counter() - t0)
+    env.close()
+    cost = np.array(calls)
+    pairs = np.maximum(rng.choice(cost, 100_000), rng.choice(cost, 100_000))
+    return 2.0 * cost.mean() / pairs.mean()
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawTextHelpFormatter
@@ -184,9 +218,10 @@ def main() -> None:
     base = reacher["step+reset/s"]
     print("| id | single: cold | in step | with resets | × Reacher | ms/reset | steps/episode "
           "| vector: with resets | × Reacher | oracle actions | × Reacher |"
-          + (" async ×1 | async ×2 | ×2 / ×1 |" if args.asynchronous else ""))
+          + (" async ×1 | async ×2 | ×2 / ×1 | lockstep |" if args.asynchronous
+             else ""))
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
-          + ("---:|---:|---:|" if args.asynchronous else ""))
+          + ("---:|---:|---:|---:|" if args.asynchronous else ""))
     for env_id in [*ids, "Reacher-v5"]:
         row = reacher if env_id == "Reacher-v5" else single(
             env_id, args.seconds, args.warmup, args.warmup_steps)
@@ -202,7 +237,8 @@ def main() -> None:
         if args.asynchronous:
             one, two = (async_workers(env_id, workers, args.seconds, args.warmup)
                         for workers in (1, 2))
-            line += f" {one:,.0f} | {two:,.0f} | {two / one:.2f} |"
+            model = lockstep(env_id, args.seconds, args.warmup)
+            line += f" {one:,.0f} | {two:,.0f} | {two / one:.2f} | {model:.2f} |"
         print(line, flush=True)
 
 
