@@ -265,10 +265,11 @@ def _warm_up_part(part: str) -> None:
         random_chain_configurations(env._task_arm, np.random.default_rng(0), 2,
                                     env.compiled_filter, env.checker.lever,
                                     env.checker.resolution)
-        # The chain takes a quarter of the stepping part's time: this process goes on to
-        # what neither the stepping part nor the stepping stages compile, the reset of an
-        # arm with turn branches up to its survey (its factored travel summaries) and the
-        # DP oracle's pass, instead of leaving it to the end in one process.
+        # The chain compiles in a fraction of the stepping part's time: this process goes
+        # on to what the stepping part does not compile and what calls none of its stages,
+        # the reset of an arm with turn branches up to its survey (its factored travel
+        # summaries) and the DP oracle's pass, instead of leaving them to the end, where
+        # one process would compile them alone.
         turned = gym.make("IKBranch/UR5e-v4", n_waypoints=2).unwrapped
         assert isinstance(turned, IKBranchEnv)
         begin_episodes([turned], [0], turned.compiled_filter, np.zeros(1, dtype=np.int64))
