@@ -174,26 +174,24 @@ def lockstep(env_id: str, seconds: float, warmup: float) -> float:
     """The rate of two workers stepped in lockstep over one's, counting only the env's
     own work (the module docstring)."""
     env = gym.make(env_id)
+    env.reset(seed=0)
     env.action_space.seed(0)
-    rng = np.random.default_rng(0)
-    masked = env_id in envs.ENV_SPECS
-    _, info = env.reset(seed=0)
+    action = _runner(env, 0)
     ended, calls = False, []
     start = time.perf_counter()
     while time.perf_counter() - start < warmup + seconds:
+        a = None if ended else action()
         t0 = time.perf_counter()
         if ended:
-            _, info = env.reset()
+            env.reset()
             ended = False
         else:
-            action = (int(rng.choice(np.flatnonzero(info["action_mask"]))) if masked
-                      else env.action_space.sample())
-            _, _, terminated, truncated, info = env.step(action)
+            _, _, terminated, truncated, _ = env.step(a)
             ended = terminated or truncated
         if t0 - start >= warmup:
             calls.append(time.perf_counter() - t0)
     env.close()
-    cost = np.array(calls)
+    cost, rng = np.array(calls), np.random.default_rng(0)
     pairs = np.maximum(rng.choice(cost, 100_000), rng.choice(cost, 100_000))
     return 2.0 * cost.mean() / pairs.mean()
 
