@@ -330,17 +330,12 @@ def _blocked(ep, r, w, b):
                         ep.limits[r], ep.revolute)
 
 
-@njit(inline="always")
-def _allowed(ep, r, w, b):
-    """Branch ``b`` of row ``r``'s next waypoint ``w`` is in its action mask."""
-    return ep.valid[r, w, b] and not _blocked(ep, r, w, b)
-
-
 # A field of ``ep`` read in a loop over the K branches costs a reference count taken and
 # dropped per read, more than the test it serves: the loops below read each field once.
 @njit(inline="always")
 def _allowed_row(ep, r, w, out):
-    """``out[b]`` = :func:`_allowed` (row ``r``, waypoint ``w``, branch b) for every b."""
+    """``out[b]``: branch b of row ``r``'s next waypoint ``w`` is in its action mask (valid,
+    and not :func:`_blocked`), for every b."""
     valid = ep.valid
     if not ep.inside[r, w]:  # no process segment: nothing is blocked
         for b in range(len(out)):
