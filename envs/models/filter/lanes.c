@@ -202,48 +202,77 @@ static inline void in_frame(int W, const Scene *S, int64_t b, const double *rest
 }
 
 /* fine[l] = min over a's cover spheres of (distance of the centre to b's container) less
- * the sphere's radius, in b's frame (static: the scene's; moving: each lane's). */
-static void cover_gaps(int W, const Scene *S, int64_t a, int64_t b, const double *restrict wl,
-                       const double *restrict rl, const double *restrict cl,
-                       double *restrict fine) {
-  double lx[L], ly[L], lz[L];
+ * the sphere's radius, in b's frame (static: the scene's; moving: each lane's), for b of
+ * one kind and frame (compile-time constants where cover_gaps calls it): each lane's
+ * centre goes into b's frame and to its distance in one loop, whose values stay in
+ * registers instead of passing through arrays on the stack (docs/models.md). */
+static inline void cover_gaps_of(int W, const Scene *S, int64_t a, int64_t b, const int fixed,
+                                 const int64_t kind, const double *restrict wl,
+                                 const double *restrict rl, const double *restrict cl,
+                                 double *restrict fine) {
   const double *size = S->slot_size + 3 * b;
   double s0 = size[0], s1 = size[1], s2 = size[2];
-  int64_t kind = S->slot_type[b];
+  const double *o = S->slot_pos + 3 * b, *q = S->slot_rot + 9 * b;
+  const double *restrict WB = wl + b * 3 * L, *restrict R = rl + b * 9 * L;
   for (int l = 0; l < W; l++) fine[l] = INFINITY;
   for (int64_t c = S->cover_start[a]; c < S->cover_start[a + 1]; c++) {
     const double *restrict C = cl + c * 3 * L;
     double radius = S->cover_radius[c];
-    in_frame(W, S, b, C, C + L, C + 2 * L, wl, rl, lx, ly, lz);
-    switch (kind) {
-    case SPHERE:
-      for (int l = 0; l < W; l++)
-        fine[l] = MIN(fine[l], sqrt(lx[l] * lx[l] + ly[l] * ly[l] + lz[l] * lz[l]) - s0 - radius);
-      break;
-    case CAPSULE:
-      for (int l = 0; l < W; l++) {
-        double z = lz[l] - MIN(MAX(lz[l], -s1), s1);
-        fine[l] = MIN(fine[l], sqrt(lx[l] * lx[l] + ly[l] * ly[l] + z * z) - s0 - radius);
+    for (int l = 0; l < W; l++) {
+      /* the centre in b's frame, as in_frame computes it */
+      double dx = C[l] - (fixed ? o[0] : WB[l]), dy = C[L + l] - (fixed ? o[1] : WB[L + l]),
+             dz = C[2 * L + l] - (fixed ? o[2] : WB[2 * L + l]);
+      double lx = (fixed ? q[0] : R[l]) * dx + (fixed ? q[3] : R[3 * L + l]) * dy
+                  + (fixed ? q[6] : R[6 * L + l]) * dz;
+      double ly = (fixed ? q[1] : R[L + l]) * dx + (fixed ? q[4] : R[4 * L + l]) * dy
+                  + (fixed ? q[7] : R[7 * L + l]) * dz;
+      double lz = (fixed ? q[2] : R[2 * L + l]) * dx + (fixed ? q[5] : R[5 * L + l]) * dy
+                  + (fixed ? q[8] : R[8 * L + l]) * dz;
+      double gap;
+      if (kind == SPHERE) {
+        gap = sqrt(lx * lx + ly * ly + lz * lz) - s0 - radius;
+      } else if (kind == CAPSULE) {
+        double z = lz - MIN(MAX(lz, -s1), s1);
+        gap = sqrt(lx * lx + ly * ly + z * z) - s0 - radius;
+      } else if (kind == BOX) {
+        double ex = MAX(fabs(lx) - s0, 0.0), ey = MAX(fabs(ly) - s1, 0.0),
+               ez = MAX(fabs(lz) - s2, 0.0);
+        gap = sqrt(ex * ex + ey * ey + ez * ez) - radius;
+      } else if (kind == CYLINDER) {
+        double er = MAX(sqrt(lx * lx + ly * ly) - s0, 0.0), ez = MAX(fabs(lz) - s1, 0.0);
+        gap = sqrt(er * er + ez * ez) - radius;
+      } else { /* PLANE: the half-space below its z = 0 */
+        gap = lz - radius;
       }
-      break;
-    case BOX:
-      for (int l = 0; l < W; l++) {
-        double ex = MAX(fabs(lx[l]) - s0, 0.0), ey = MAX(fabs(ly[l]) - s1, 0.0),
-               ez = MAX(fabs(lz[l]) - s2, 0.0);
-        fine[l] = MIN(fine[l], sqrt(ex * ex + ey * ey + ez * ez) - radius);
-      }
-      break;
-    case CYLINDER:
-      for (int l = 0; l < W; l++) {
-        double er = MAX(sqrt(lx[l] * lx[l] + ly[l] * ly[l]) - s0, 0.0),
-               ez = MAX(fabs(lz[l]) - s1, 0.0);
-        fine[l] = MIN(fine[l], sqrt(er * er + ez * ez) - radius);
-      }
-      break;
-    default: /* PLANE: the half-space below its z = 0 */
-      for (int l = 0; l < W; l++) fine[l] = MIN(fine[l], lz[l] - radius);
+      fine[l] = MIN(fine[l], gap);
     }
   }
+}
+
+/* cover_gaps_of, its kind and frame made constants: one specialised loop each. */
+static void cover_gaps(int W, const Scene *S, int64_t a, int64_t b, const double *restrict wl,
+                       const double *restrict rl, const double *restrict cl,
+                       double *restrict fine) {
+#define COVER_GAPS(fixed, kind) cover_gaps_of(W, S, a, b, fixed, kind, wl, rl, cl, fine); break
+  int64_t kind = S->slot_type[b];
+  if (S->slot_static[b]) {
+    switch (kind) {
+    case SPHERE: COVER_GAPS(1, SPHERE);
+    case CAPSULE: COVER_GAPS(1, CAPSULE);
+    case BOX: COVER_GAPS(1, BOX);
+    case CYLINDER: COVER_GAPS(1, CYLINDER);
+    default: COVER_GAPS(1, PLANE);
+    }
+  } else {
+    switch (kind) {
+    case SPHERE: COVER_GAPS(0, SPHERE);
+    case CAPSULE: COVER_GAPS(0, CAPSULE);
+    case BOX: COVER_GAPS(0, BOX);
+    case CYLINDER: COVER_GAPS(0, CYLINDER);
+    default: COVER_GAPS(0, PLANE);
+    }
+  }
+#undef COVER_GAPS
 }
 
 /* contact[l] |= the inner shapes of pair k (a moving, with witness points) are closer than
