@@ -13,9 +13,18 @@
  * half-space, in closed form) less its radius bounds the pair's distance from below, and
  * so does the gap of the two bounding spheres. A pair closes at most at its rate (m per
  * unit t, as the scalar kernels use it), so a gap g beyond the margin holds for g / rate.
- * Every gap is reduced by SLACK (1e-9 m) for the rounding of these double-precision
+ * Every gap is reduced by SLACK (1e-9 m) for the rounding of the double-precision
  * computations (forward kinematics and the polynomial sine and cosine stay within
  * 1e-12 m of the scalar kernels', tests/envs/models/filter/test_lanes.py).
+ *
+ * Precision: frames and the bounding spheres in double; the covers' and contact points'
+ * distances, most of a call's work, in single precision (twice the lanes a SIMD
+ * instruction), from the slot and cover centres rounded once when placed. Each such
+ * distance is off by at most ROUNDING * (|a|inf + |b|inf + 2 r_a + r_b) (|x|inf: the
+ * largest coordinate of a slot's centre in this lane; r: a slot's bounding radius; for
+ * an unbounded b, a plane's none, another's inner shape's largest size), a bound derived
+ * in docs/models.md ("Single precision"), and every comparison that proves something
+ * gives that much away.
  *
  * Layout: structure of arrays, the 16 lanes innermost and contiguous, so that every
  * inner loop is one run of SIMD instructions; no per-model code.
@@ -25,6 +34,9 @@
 
 #define L 16
 #define SLACK 1e-9
+/* 128 units in the last place of single precision (2^-24 each): the error bound of a
+ * single-precision distance per metre of its coordinates (docs/models.md). */
+#define ROUNDING (128.0 * 0x1p-24)
 enum { SPHERE, CAPSULE, BOX, CYLINDER, PLANE, UNBOUNDED };
 #define NO_INNER (-1)
 #define CONTACT (-2.0)
@@ -50,11 +62,13 @@ typedef struct {
   const int64_t *slot_inner; const double *slot_inner_size, *pair_contact;
   const uint8_t *pair_skewer;
   const int64_t *witness_start; const double *witness_offset, *witness_spacing;
+  const double *slot_radius;
 } Scene;
 
 /* One call's lanes: start[nq][L], change[nq][L], t[L], cap[L], rates[npair][L] in;
- * step[L] out; work: body, slot and cover frames; width: lanes 0 .. width - 1 are
- * bounded (rounded up to a multiple of 4, a SIMD register of doubles), the rest left. */
+ * step[L] out; work: body frames and slot centres (double), then the slot centres, slot
+ * frames and cover centres in single precision (lanes.py: work_size); width: lanes
+ * 0 .. width - 1 are bounded (rounded up to a multiple of 4), the rest left. */
 typedef struct {
   const double *start, *change, *t, *cap, *rates;
   double *step, *work;
@@ -145,56 +159,64 @@ static void forward(int W, const Scene *S, const Block *B, double *restrict xl, 
   }
 }
 
-/* Centres of the moving slots, frames of those that are some pair's moving partner, and
- * the cover spheres' centres. */
+/* Centres of the moving slots (double, and rounded to single precision), frames of those
+ * that are some pair's moving partner and the cover spheres' centres (single). */
 static void place(int W, const Scene *S, const double *restrict xl, const double *restrict ml,
-                  double *restrict wl, double *restrict rl, double *restrict cl) {
+                  double *restrict wl, float *restrict wf, float *restrict rf,
+                  float *restrict cf) {
   for (int64_t s = 0; s < S->nslot; s++) {
     if (S->slot_static[s]) continue;
     int64_t b = S->slot_body[s];
     const double *restrict X = xl + b * 3 * L, *restrict M = ml + b * 9 * L;
     const double *p = S->slot_pos + 3 * s, *q = S->slot_rot + 9 * s;
-    double *restrict Y = wl + s * 3 * L, *restrict R = rl + s * 9 * L;
+    double *restrict Y = wl + s * 3 * L;
+    float *restrict YF = wf + s * 3 * L, *restrict R = rf + s * 9 * L;
     for (int i = 0; i < 3; i++)
-      for (int l = 0; l < W; l++)
-        Y[i * L + l] = X[i * L + l] + M[3 * i * L + l] * p[0] + M[(3 * i + 1) * L + l] * p[1]
-                       + M[(3 * i + 2) * L + l] * p[2];
+      for (int l = 0; l < W; l++) {
+        double y = X[i * L + l] + M[3 * i * L + l] * p[0] + M[(3 * i + 1) * L + l] * p[1]
+                   + M[(3 * i + 2) * L + l] * p[2];
+        Y[i * L + l] = y;
+        YF[i * L + l] = (float)y;
+      }
     if (S->slot_turned[s])
       for (int i = 0; i < 3; i++)
         for (int k = 0; k < 3; k++)
           for (int l = 0; l < W; l++)
-            R[(3 * i + k) * L + l] = M[3 * i * L + l] * q[k] + M[(3 * i + 1) * L + l] * q[3 + k]
-                                     + M[(3 * i + 2) * L + l] * q[6 + k];
+            R[(3 * i + k) * L + l] = (float)(M[3 * i * L + l] * q[k]
+                                             + M[(3 * i + 1) * L + l] * q[3 + k]
+                                             + M[(3 * i + 2) * L + l] * q[6 + k]);
     for (int64_t c = S->cover_start[s]; c < S->cover_start[s + 1]; c++) {
       const double *o = S->cover_pos + 3 * c;
-      double *restrict C = cl + c * 3 * L;
+      float *restrict C = cf + c * 3 * L;
       for (int i = 0; i < 3; i++)
         for (int l = 0; l < W; l++)
-          C[i * L + l] = X[i * L + l] + M[3 * i * L + l] * o[0] + M[(3 * i + 1) * L + l] * o[1]
-                         + M[(3 * i + 2) * L + l] * o[2];
+          C[i * L + l] = (float)(X[i * L + l] + M[3 * i * L + l] * o[0]
+                                 + M[(3 * i + 1) * L + l] * o[1] + M[(3 * i + 2) * L + l] * o[2]);
     }
   }
 }
 
 /* (lx, ly, lz)[l] = the points (px, py, pz)[l] in slot b's frame (static: the scene's;
- * moving: each lane's). */
-static inline void in_frame(int W, const Scene *S, int64_t b, const double *restrict px,
-                            const double *restrict py, const double *restrict pz,
-                            const double *restrict wl, const double *restrict rl,
-                            double *restrict lx, double *restrict ly, double *restrict lz) {
+ * moving: each lane's), in single precision. */
+static inline void in_frame(int W, const Scene *S, int64_t b, const float *restrict px,
+                            const float *restrict py, const float *restrict pz,
+                            const float *restrict wf, const float *restrict rf,
+                            float *restrict lx, float *restrict ly, float *restrict lz) {
   if (S->slot_static[b]) {
-    const double *o = S->slot_pos + 3 * b, *q = S->slot_rot + 9 * b;
+    float o[3], q[9];
+    for (int i = 0; i < 3; i++) o[i] = (float)S->slot_pos[3 * b + i];
+    for (int i = 0; i < 9; i++) q[i] = (float)S->slot_rot[9 * b + i];
     for (int l = 0; l < W; l++) {
-      double dx = px[l] - o[0], dy = py[l] - o[1], dz = pz[l] - o[2];
+      float dx = px[l] - o[0], dy = py[l] - o[1], dz = pz[l] - o[2];
       lx[l] = q[0] * dx + q[3] * dy + q[6] * dz;
       ly[l] = q[1] * dx + q[4] * dy + q[7] * dz;
       lz[l] = q[2] * dx + q[5] * dy + q[8] * dz;
     }
     return;
   }
-  const double *restrict WB = wl + b * 3 * L, *restrict R = rl + b * 9 * L;
+  const float *restrict WB = wf + b * 3 * L, *restrict R = rf + b * 9 * L;
   for (int l = 0; l < W; l++) {
-    double dx = px[l] - WB[l], dy = py[l] - WB[L + l], dz = pz[l] - WB[2 * L + l];
+    float dx = px[l] - WB[l], dy = py[l] - WB[L + l], dz = pz[l] - WB[2 * L + l];
     lx[l] = R[l] * dx + R[3 * L + l] * dy + R[6 * L + l] * dz;
     ly[l] = R[L + l] * dx + R[4 * L + l] * dy + R[7 * L + l] * dz;
     lz[l] = R[2 * L + l] * dx + R[5 * L + l] * dy + R[8 * L + l] * dz;
@@ -205,42 +227,45 @@ static inline void in_frame(int W, const Scene *S, int64_t b, const double *rest
  * the sphere's radius, in b's frame (static: the scene's; moving: each lane's), for b of
  * one kind and frame (compile-time constants where cover_gaps calls it): each lane's
  * centre goes into b's frame and to its distance in one loop, whose values stay in
- * registers instead of passing through arrays on the stack (docs/models.md). */
+ * registers instead of passing through arrays on the stack (docs/models.md). Single
+ * precision: off by at most the call's rounding bound (lane_block). */
 static inline void cover_gaps_of(int W, const Scene *S, int64_t a, int64_t b, const int fixed,
-                                 const int64_t kind, const double *restrict wl,
-                                 const double *restrict rl, const double *restrict cl,
-                                 double *restrict fine) {
+                                 const int64_t kind, const float *restrict wf,
+                                 const float *restrict rf, const float *restrict cf,
+                                 float *restrict fine) {
   const double *size = S->slot_size + 3 * b;
-  double s0 = size[0], s1 = size[1], s2 = size[2];
-  const double *o = S->slot_pos + 3 * b, *q = S->slot_rot + 9 * b;
-  const double *restrict WB = wl + b * 3 * L, *restrict R = rl + b * 9 * L;
+  float s0 = (float)size[0], s1 = (float)size[1], s2 = (float)size[2];
+  float o[3], q[9];
+  for (int i = 0; i < 3; i++) o[i] = (float)S->slot_pos[3 * b + i];
+  for (int i = 0; i < 9; i++) q[i] = (float)S->slot_rot[9 * b + i];
+  const float *restrict WB = wf + b * 3 * L, *restrict R = rf + b * 9 * L;
   for (int l = 0; l < W; l++) fine[l] = INFINITY;
   for (int64_t c = S->cover_start[a]; c < S->cover_start[a + 1]; c++) {
-    const double *restrict C = cl + c * 3 * L;
-    double radius = S->cover_radius[c];
+    const float *restrict C = cf + c * 3 * L;
+    float radius = (float)S->cover_radius[c];
     for (int l = 0; l < W; l++) {
       /* the centre in b's frame, as in_frame computes it */
-      double dx = C[l] - (fixed ? o[0] : WB[l]), dy = C[L + l] - (fixed ? o[1] : WB[L + l]),
-             dz = C[2 * L + l] - (fixed ? o[2] : WB[2 * L + l]);
-      double lx = (fixed ? q[0] : R[l]) * dx + (fixed ? q[3] : R[3 * L + l]) * dy
-                  + (fixed ? q[6] : R[6 * L + l]) * dz;
-      double ly = (fixed ? q[1] : R[L + l]) * dx + (fixed ? q[4] : R[4 * L + l]) * dy
-                  + (fixed ? q[7] : R[7 * L + l]) * dz;
-      double lz = (fixed ? q[2] : R[2 * L + l]) * dx + (fixed ? q[5] : R[5 * L + l]) * dy
-                  + (fixed ? q[8] : R[8 * L + l]) * dz;
-      double gap;
+      float dx = C[l] - (fixed ? o[0] : WB[l]), dy = C[L + l] - (fixed ? o[1] : WB[L + l]),
+            dz = C[2 * L + l] - (fixed ? o[2] : WB[2 * L + l]);
+      float lx = (fixed ? q[0] : R[l]) * dx + (fixed ? q[3] : R[3 * L + l]) * dy
+                 + (fixed ? q[6] : R[6 * L + l]) * dz;
+      float ly = (fixed ? q[1] : R[L + l]) * dx + (fixed ? q[4] : R[4 * L + l]) * dy
+                 + (fixed ? q[7] : R[7 * L + l]) * dz;
+      float lz = (fixed ? q[2] : R[2 * L + l]) * dx + (fixed ? q[5] : R[5 * L + l]) * dy
+                 + (fixed ? q[8] : R[8 * L + l]) * dz;
+      float gap;
       if (kind == SPHERE) {
-        gap = sqrt(lx * lx + ly * ly + lz * lz) - s0 - radius;
+        gap = sqrtf(lx * lx + ly * ly + lz * lz) - s0 - radius;
       } else if (kind == CAPSULE) {
-        double z = lz - MIN(MAX(lz, -s1), s1);
-        gap = sqrt(lx * lx + ly * ly + z * z) - s0 - radius;
+        float z = lz - MIN(MAX(lz, -s1), s1);
+        gap = sqrtf(lx * lx + ly * ly + z * z) - s0 - radius;
       } else if (kind == BOX) {
-        double ex = MAX(fabs(lx) - s0, 0.0), ey = MAX(fabs(ly) - s1, 0.0),
-               ez = MAX(fabs(lz) - s2, 0.0);
-        gap = sqrt(ex * ex + ey * ey + ez * ez) - radius;
+        float ex = MAX(fabsf(lx) - s0, 0.0f), ey = MAX(fabsf(ly) - s1, 0.0f),
+              ez = MAX(fabsf(lz) - s2, 0.0f);
+        gap = sqrtf(ex * ex + ey * ey + ez * ez) - radius;
       } else if (kind == CYLINDER) {
-        double er = MAX(sqrt(lx * lx + ly * ly) - s0, 0.0), ez = MAX(fabs(lz) - s1, 0.0);
-        gap = sqrt(er * er + ez * ez) - radius;
+        float er = MAX(sqrtf(lx * lx + ly * ly) - s0, 0.0f), ez = MAX(fabsf(lz) - s1, 0.0f);
+        gap = sqrtf(er * er + ez * ez) - radius;
       } else { /* PLANE: the half-space below its z = 0 */
         gap = lz - radius;
       }
@@ -250,10 +275,10 @@ static inline void cover_gaps_of(int W, const Scene *S, int64_t a, int64_t b, co
 }
 
 /* cover_gaps_of, its kind and frame made constants: one specialised loop each. */
-static void cover_gaps(int W, const Scene *S, int64_t a, int64_t b, const double *restrict wl,
-                       const double *restrict rl, const double *restrict cl,
-                       double *restrict fine) {
-#define COVER_GAPS(fixed, kind) cover_gaps_of(W, S, a, b, fixed, kind, wl, rl, cl, fine); break
+static void cover_gaps(int W, const Scene *S, int64_t a, int64_t b, const float *restrict wf,
+                       const float *restrict rf, const float *restrict cf,
+                       float *restrict fine) {
+#define COVER_GAPS(fixed, kind) cover_gaps_of(W, S, a, b, fixed, kind, wf, rf, cf, fine); break
   int64_t kind = S->slot_type[b];
   if (S->slot_static[b]) {
     switch (kind) {
@@ -283,50 +308,56 @@ static void cover_gaps(int W, const Scene *S, int64_t a, int64_t b, const double
  * and a primitive box (pair_skewer) also need what MuJoCo's collider sees: not its axis
  * through the box with both ends outside. Proven where every point is farther than half
  * their spacing from the box (the axis then misses it: the point distance changes at
- * most as fast as the point moves) or an end lies inside the box by SLACK. */
+ * most as fast as the point moves) or an end lies inside the box by SLACK. The distances
+ * in single precision, each comparison giving away rounding[l] (lane_block). */
 static void witness(int W, const Scene *S, int64_t k, int64_t a, int64_t b,
-                    const double *restrict ml,
-                    const double *restrict wl, const double *restrict rl,
+                    const double *restrict ml, const float *restrict wf,
+                    const float *restrict rf, const double *restrict rounding,
                     double *restrict contact) {
-  double px[L], py[L], pz[L], lx[L], ly[L], lz[L], ux[L], uy[L], uz[L], best[L], inside[L];
+  float px[L], py[L], pz[L], lx[L], ly[L], lz[L], ux[L], uy[L], uz[L], best[L], inside[L];
   const double *ib = S->slot_inner_size + 3 * b;
-  double b0 = ib[0], b1 = ib[1], b2 = ib[2];
+  float b0 = (float)ib[0], b1 = (float)ib[1], b2 = (float)ib[2];
   int64_t kind = S->slot_inner[b];
   int skewer = S->pair_skewer[k] != 0;
   double radius = S->slot_inner_size[3 * a], limit = S->pair_contact[k];
   double spacing = S->witness_spacing[a];
-  const double *restrict X = wl + a * 3 * L, *restrict M = ml + S->slot_body[a] * 9 * L;
+  const float *restrict X = wf + a * 3 * L;
+  const double *restrict M = ml + S->slot_body[a] * 9 * L;
   const double *q = S->slot_rot + 9 * a;
   for (int i = 0; i < 3; i++) {  /* a's axis in the world */
-    double *restrict u = i == 0 ? ux : (i == 1 ? uy : uz);
+    float *restrict u = i == 0 ? ux : (i == 1 ? uy : uz);
     for (int l = 0; l < W; l++)
-      u[l] = M[3 * i * L + l] * q[2] + M[(3 * i + 1) * L + l] * q[5] + M[(3 * i + 2) * L + l] * q[8];
+      u[l] = (float)(M[3 * i * L + l] * q[2] + M[(3 * i + 1) * L + l] * q[5]
+                     + M[(3 * i + 2) * L + l] * q[8]);
   }
-  for (int l = 0; l < W; l++) best[l] = INFINITY, inside[l] = 0.0;
+  /* an end inside the box by SLACK, with the rounding given away */
+  float deep[L];
+  for (int l = 0; l < W; l++)
+    best[l] = INFINITY, inside[l] = 0.0f, deep[l] = (float)(SLACK + rounding[l]);
   int64_t first = S->witness_start[a], last = S->witness_start[a + 1] - 1;
   for (int64_t c = first; c <= last; c++) {
-    double z = S->witness_offset[c];
+    float z = (float)S->witness_offset[c];
     for (int l = 0; l < W; l++)
       px[l] = X[l] + ux[l] * z, py[l] = X[L + l] + uy[l] * z, pz[l] = X[2 * L + l] + uz[l] * z;
-    in_frame(W, S, b, px, py, pz, wl, rl, lx, ly, lz);
+    in_frame(W, S, b, px, py, pz, wf, rf, lx, ly, lz);
     switch (kind) {
     case SPHERE:
       for (int l = 0; l < W; l++)
-        best[l] = MIN(best[l], sqrt(lx[l] * lx[l] + ly[l] * ly[l] + lz[l] * lz[l]) - b0);
+        best[l] = MIN(best[l], sqrtf(lx[l] * lx[l] + ly[l] * ly[l] + lz[l] * lz[l]) - b0);
       break;
     case CAPSULE:
       for (int l = 0; l < W; l++) {
-        double h = lz[l] - MIN(MAX(lz[l], -b1), b1);
-        best[l] = MIN(best[l], sqrt(lx[l] * lx[l] + ly[l] * ly[l] + h * h) - b0);
+        float h = lz[l] - MIN(MAX(lz[l], -b1), b1);
+        best[l] = MIN(best[l], sqrtf(lx[l] * lx[l] + ly[l] * ly[l] + h * h) - b0);
       }
       break;
     case BOX: {
       int end = c == first || c == last;
       for (int l = 0; l < W; l++) {
-        double ax = fabs(lx[l]), ay = fabs(ly[l]), az = fabs(lz[l]);
-        double ex = MAX(ax - b0, 0.0), ey = MAX(ay - b1, 0.0), ez = MAX(az - b2, 0.0);
-        best[l] = MIN(best[l], sqrt(ex * ex + ey * ey + ez * ez));
-        double in = (ax <= b0 - SLACK) & (ay <= b1 - SLACK) & (az <= b2 - SLACK);
+        float ax = fabsf(lx[l]), ay = fabsf(ly[l]), az = fabsf(lz[l]);
+        float ex = MAX(ax - b0, 0.0f), ey = MAX(ay - b1, 0.0f), ez = MAX(az - b2, 0.0f);
+        best[l] = MIN(best[l], sqrtf(ex * ex + ey * ey + ez * ez));
+        float in = (ax + deep[l] <= b0) & (ay + deep[l] <= b1) & (az + deep[l] <= b2);
         inside[l] = end ? MAX(inside[l], in) : inside[l];
       }
       break;
@@ -336,21 +367,38 @@ static void witness(int W, const Scene *S, int64_t k, int64_t a, int64_t b,
     }
   }
   for (int l = 0; l < W; l++) {
-    double near = (best[l] - radius + SLACK < limit);
-    double clear = skewer ? (best[l] > 0.5 * spacing + SLACK) : 1.0;
-    contact[l] = MAX(contact[l], MAX(near * clear, skewer ? inside[l] : 0.0));
+    double least = (double)best[l];
+    double near = (least + rounding[l] - radius + SLACK < limit);
+    double clear = skewer ? (least - rounding[l] > 0.5 * spacing + SLACK) : 1.0;
+    contact[l] = MAX(contact[l], MAX(near * clear, skewer ? (double)inside[l] : 0.0));
   }
 }
 
+/* The largest coordinate of slot s's centre in each lane (static: the scene's). */
+static inline void extent(int W, const Scene *S, int64_t s, const double *restrict wl,
+                          double *restrict out) {
+  if (S->slot_static[s]) {
+    const double *o = S->slot_pos + 3 * s;
+    double m = MAX(MAX(fabs(o[0]), fabs(o[1])), fabs(o[2]));
+    for (int l = 0; l < W; l++) out[l] = m;
+    return;
+  }
+  const double *restrict Y = wl + s * 3 * L;
+  for (int l = 0; l < W; l++)
+    out[l] = MAX(MAX(fabs(Y[l]), fabs(Y[L + l])), fabs(Y[2 * L + l]));
+}
+
 void lane_block(const Scene *S, Block *B) {
-  double gap[L], fine[L], contact[L];
+  double gap[L], contact[L], rounding[L], ea[L], eb[L];
+  float fine[L];
   double *steps = B->step;
   double *xl = B->work, *ml = xl + S->nbody * 3 * L, *wl = ml + S->nbody * 9 * L;
-  double *rl = wl + S->nslot * 3 * L, *cl = rl + S->nslot * 9 * L;
+  float *wf = (float *)(wl + S->nslot * 3 * L), *rf = wf + S->nslot * 3 * L;
+  float *cf = rf + S->nslot * 9 * L;
   int W = (int)((B->width + 3) & ~(int64_t)3);
   if (W > L) W = L;
   forward(W, S, B, xl, ml);
-  place(W, S, xl, ml, wl, rl, cl);
+  place(W, S, xl, ml, wl, wf, rf, cf);
   for (int l = 0; l < W; l++) steps[l] = B->cap[l], contact[l] = 0.0;
   for (int64_t k = 0; k < S->npair; k++) {
     int64_t kind = S->pair_kind[k];
@@ -359,7 +407,7 @@ void lane_block(const Scene *S, Block *B) {
     const double *restrict rate = B->rates + k * L, *f = S->pair_fixed + 6 * k;
     const double *restrict WA = wl + a * 3 * L, *restrict WB = wl + b * 3 * L;
     double reach = S->pair_reach[k];
-    /* The bounding spheres (a half-space for a plane) first. */
+    /* The bounding spheres (a half-space for a plane) first, in double precision. */
     if (kind == FIXED_HALF_SPACE) {
       for (int l = 0; l < W; l++)
         gap[l] = f[3] * (WA[l] - f[0]) + f[4] * (WA[L + l] - f[1]) + f[5] * (WA[2 * L + l] - f[2])
@@ -375,22 +423,33 @@ void lane_block(const Scene *S, Block *B) {
     int far = 1;
     for (int l = 0; l < W; l++) far &= gap[l] - SLACK >= rate[l] * steps[l];
     if (far) continue;
+    /* What the single-precision distances of this pair may be off by, per lane. */
+    double ra = S->slot_radius[a], rb = S->slot_radius[b], radii = 2.0 * ra;
+    if (isfinite(rb)) {
+      radii += rb;  /* b's container and inner shape lie within it */
+    } else if (S->slot_inner[b] == SPHERE || S->slot_inner[b] == CAPSULE || S->slot_inner[b] == BOX) {
+      const double *ib = S->slot_inner_size + 3 * b;  /* an unbounded b: its inner shape's sizes */
+      radii += MAX(MAX(fabs(ib[0]), fabs(ib[1])), fabs(ib[2]));
+    }
+    extent(W, S, a, wl, ea);
+    extent(W, S, b, wl, eb);
+    for (int l = 0; l < W; l++) rounding[l] = ROUNDING * (ea[l] + eb[l] + radii);
     if (S->cover_start[a] == S->cover_start[a + 1] || S->slot_type[b] == UNBOUNDED) {
       for (int l = 0; l < W; l++) fine[l] = -INFINITY;
     } else {
-      cover_gaps(W, S, a, b, wl, rl, cl, fine);
+      cover_gaps(W, S, a, b, wf, rf, cf, fine);
     }
     double margin = S->pair_margin[k];
     int open = 0;
     for (int l = 0; l < W; l++) {
-      double g = MAX(gap[l], fine[l] - margin) - SLACK;
+      double g = MAX(gap[l], ((double)fine[l] - rounding[l]) - margin) - SLACK;
       double step = rate[l] > 0.0 ? g / rate[l] : INFINITY;
       steps[l] = MIN(steps[l], g > 0.0 ? step : -1.0);
       open |= g <= 0.0;
     }
     if (open && S->witness_start[a] < S->witness_start[a + 1] && S->slot_inner[b] != NO_INNER
         && S->pair_contact[k] > -INFINITY) {
-      witness(W, S, k, a, b, ml, wl, rl, contact);
+      witness(W, S, k, a, b, ml, wf, rf, rounding, contact);
       int decided = 1;
       for (int l = 0; l < W; l++) decided &= contact[l] > 0.0;
       if (decided) break;  /* every lane in contact: the other pairs cannot change that */

@@ -165,7 +165,7 @@ _POINTERS = ("body_parent body_pos body_rot body_jntadr body_jntnum body_flags j
              "slot_pos slot_rot slot_type slot_size pair_a pair_b pair_margin pair_reach "
              "pair_kind pair_fixed cover_start cover_pos cover_radius slot_turned slot_inner "
              "slot_inner_size pair_contact pair_skewer witness_start witness_offset "
-             "witness_spacing").split()
+             "witness_spacing slot_radius").split()
 
 
 class _Scene(ctypes.Structure):
@@ -247,7 +247,7 @@ class LaneScene:
 
 #: The struct's fields that are per-scene arrays (a leading scene axis of length 1).
 _ROW = frozenset({"slot_pos", "slot_rot", "slot_size", "pair_fixed", "pair_reach",
-                  "pair_kind", "slot_inner", "slot_inner_size"})
+                  "pair_kind", "slot_inner", "slot_inner_size", "slot_radius"})
 
 
 def usable(scene: CompiledScene, cover_start: np.ndarray) -> bool:
@@ -258,5 +258,7 @@ def usable(scene: CompiledScene, cover_start: np.ndarray) -> bool:
 
 
 def work_size(scene: CompiledScene, n_covers: int) -> int:
-    """Doubles of a call's work array: body frames, slot frames and cover centres."""
-    return LANES * (12 * len(scene.body_parent) + 12 * len(scene.slot_type) + 3 * n_covers)
+    """Doubles of a call's work array: body frames and slot centres in double precision,
+    then slot centres, slot frames and cover centres in single precision (two a double)."""
+    singles = LANES * (12 * len(scene.slot_type) + 3 * n_covers)
+    return LANES * (12 * len(scene.body_parent) + 3 * len(scene.slot_type)) + (singles + 1) // 2

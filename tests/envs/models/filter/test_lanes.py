@@ -247,3 +247,69 @@ def test_without_a_c_compiler_the_lanes_say_so_and_stay_off(monkeypatch):
     monkeypatch.setenv("CC", "/nonexistent/cc")
     with pytest.warns(RuntimeWarning, match="did not compile"):
         assert library.__wrapped__() is None
+
+
+def _rod_and_ball(offset: float) -> tuple[CollisionChecker, np.ndarray, np.ndarray]:
+    """A capsule rod sliding along its axis (x) toward a ball ahead of its end and beside
+    its axis, the whole cell ``offset`` metres from the world's origin: while the ball is
+    ahead of the end, the rod's end cap cover measures the distance exactly, so the lanes'
+    bound there is the distance itself, up to their rounding. The ball's x lies just past
+    the middle between two single-precision numbers, so that rounding it moves it away
+    from the rod by almost half a unit in the last place (30 µm at 500 m). Returns the
+    checker, the rod end at q = 0 and the ball's centre."""
+    end = np.array([offset + 1.0, 0.0, 0.5])
+    ball = end + np.array([0.13, 0.075, 0.0])
+    below = float(np.float32(ball[0]))
+    ball[0] = below + 0.51 * float(np.spacing(np.float32(below)))
+    assert float(np.float32(ball[0])) > ball[0]  # rounds up, away from the rod
+    x, y, z = (repr(float(c)) for c in ball)
+    model = mujoco.MjModel.from_xml_string(f"""<mujoco><worldbody>
+        <geom name="ball" type="sphere" size="0.05" pos="{x} {y} {z}" margin="0.005"/>
+        <body name="carriage" pos="{offset!r} 0 0.5">
+          <joint name="x" type="slide" axis="1 0 0" range="-1 1"/>
+          <geom name="rod" type="capsule" fromto="0.2 0 0 1.0 0 0" size="0.02"
+                margin="0.005"/></body></worldbody></mujoco>""")
+    return CollisionChecker(model, dof=1, backend="compiled"), end, ball
+
+
+@pytest.mark.parametrize("offset", [0.0, 500.0])
+def test_the_lanes_single_precision_proves_nothing_within_its_rounding(offset):
+    # The covers' and contact points' distances run in single precision: a lane proves
+    # the pair apart only where its distance exceeds the margins, and in contact only where
+    # it is below them, at slides across that boundary in steps far below a unit in the
+    # last place (where the ball's and the rod end's rounding add up against the proof),
+    # and it does prove them a few times the stated rounding bound away.
+    checker, end, ball = _rod_and_ball(offset)
+    lanes = checker._filter.lanes
+    assert lanes.address
+    margin = 0.01  # the two geoms' margins
+    rod_centre, rod_radius = offset + 0.6, 0.4 + 0.02
+    rounding = 128 * 2.0**-24 * (rod_centre + 0.2 + abs(ball[0]) + 2 * rod_radius + 0.05)
+
+    def distance(q: np.ndarray) -> np.ndarray:  # rod surface to ball surface, in double
+        tip = np.stack([end[0] + q, np.full_like(q, end[1]), np.full_like(q, end[2])], 1)
+        return np.linalg.norm(ball - tip, axis=1) - 0.02 - 0.05
+
+    # The slide at which the distance equals the margins (bisection in double; the ball
+    # is still ahead of the rod's end there).
+    lo, hi = 0.0, 0.13
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if distance(np.array([mid]))[0] > margin else (lo, mid)
+    assert ball[0] - (end[0] + lo) > 0.02
+    unit = float(np.spacing(np.float32(end[0])))  # a unit in the last place at the rod end
+    q = np.concatenate([lo + np.linspace(-3 * unit, 3 * unit, 40 * LANES),
+                        np.linspace(0.0, 0.13, 8 * LANES)])
+    steps = np.concatenate([lanes.bound(block[:, None], np.zeros((LANES, 1)),
+                                        np.zeros(LANES), np.zeros(LANES),
+                                        np.zeros((LANES, 1)))[0]
+                            for block in q.reshape(-1, LANES)])
+    gaps = distance(q)
+    apart, touching = steps >= 0.0, steps == -2.0
+    assert np.all(gaps[apart] > margin), np.min(gaps[apart] - margin)
+    assert np.all(gaps[touching] < margin), np.max(gaps[touching] - margin)
+    clear = gaps > margin + 2 * rounding
+    assert clear.sum() >= LANES and np.all(apart[clear])
+    if not offset:
+        inside = gaps < margin - 2 * rounding - 1e-4  # the witness tolerance, and more
+        assert inside.sum() >= LANES and np.all(touching[inside])
