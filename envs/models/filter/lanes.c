@@ -426,9 +426,11 @@ void lane_block(const Scene *S, Block *B) {
     /* What the single-precision distances of this pair may be off by, per lane. */
     double ra = S->slot_radius[a], rb = S->slot_radius[b], radii = 2.0 * ra;
     if (isfinite(rb)) {
-      radii += rb;  /* b's container and inner shape lie within it */
+      radii += rb;  /* every size of b's container and inner shape is at most rb */
     } else if (S->slot_inner[b] == SPHERE || S->slot_inner[b] == CAPSULE || S->slot_inner[b] == BOX) {
-      const double *ib = S->slot_inner_size + 3 * b;  /* an unbounded b: its inner shape's sizes */
+      /* An unbounded b is a half-space (no size) or has no inner shape today; should one
+       * get a sized inner shape, its sizes count. */
+      const double *ib = S->slot_inner_size + 3 * b;
       radii += MAX(MAX(fabs(ib[0]), fabs(ib[1])), fabs(ib[2]));
     }
     extent(W, S, a, wl, ea);
