@@ -37,8 +37,9 @@ BY_BOUNDS, BY_WITNESS, BY_MUJOCO = 0, 1, 2
 #: proved in contact (those are not bounded again).
 COUNTERS = ("bounded", "mujoco", "pair bounds", "mujoco found free", "witnessed",
             "lane samples", "lane calls", "lane contacts")
-#: The fewest paths, and samples a round, worth the lanes (a lane call costs about as much
-#: for one sample as for four): with fewer the scalar kernel bounds them one by one.
+#: The fewest configurations, and samples a round, worth the lanes (a lane call costs
+#: about as much for one sample as for four): with fewer the scalar kernel bounds them one
+#: by one. Paths take the lanes from one on (a lone path fills them with 16 intervals).
 LANE_MIN = 2
 #: Where a scene's lanes are in its row of ``exact`` (``CompiledFilter``): the kernel's
 #: address (0: no lanes), its ``Scene`` struct, the doubles of a call's work array.
@@ -505,7 +506,7 @@ def check_paths(tree, geometry, motion, exact, scenes, start_rows, end_rows, ste
     indices, breadth first; a sample the bounds prove free clears every index within its
     free step on both sides, a sample a witness proves in contact is in contact,
     any other is checked by MuJoCo."""
-    if len(steps) >= LANE_MIN and exact[scenes[0], LANE_FUNCTION] != 0:
+    if len(steps) >= 1 and exact[scenes[0], LANE_FUNCTION] != 0:
         _lane_paths(tree, geometry, motion, exact, scenes, start_rows, end_rows, steps, first,
                     out, counters)
         return
