@@ -575,7 +575,7 @@ def _lane_paths(tree, geometry, motion, exact, scenes, start_rows, end_rows, ste
                 out, counters):
     """:func:`check_paths` with the samples of up to ``LANES`` paths bounded ``LANES`` at a
     time. Each path keeps the scalar loop's raked search (its queue of intervals, its lowest
-    contact ``found``), started from a few intervals at once when the call has few paths,
+    contact ``found``), started from a few intervals at once when its scene has few paths,
     so that one path alone fills the lanes. Each round takes the next interval of every
     path in turn until the lanes are full, bounds the intervals' middle samples in one call
     of the lane kernel (:mod:`.lanes`), and goes on as the scalar loop does: a sample it
@@ -597,7 +597,6 @@ def _lane_paths(tree, geometry, motion, exact, scenes, start_rows, end_rows, ste
               np.empty((LANES, size), np.int64), np.zeros(LANES, dtype=np.int64),
               np.zeros(LANES, dtype=np.int64), np.empty((LANES, nq)), np.zeros((LANES, nq)),
               np.zeros((LANES, npair)))
-    parts = max(1, LANES // min(count, LANES))  # a path's first intervals
     # A round: per lane its place, interval and middle sample, the path it has loaded.
     lanes = (np.full(LANES, -1, dtype=np.int64), np.full(LANES, -1, dtype=np.int64),
              np.zeros(LANES, dtype=np.int64), np.zeros(LANES, dtype=np.int64),
@@ -609,10 +608,11 @@ def _lane_paths(tree, geometry, motion, exact, scenes, start_rows, end_rows, ste
     delta, qpos, start, dq = scalar[6], scalar[7], scalar[8], scalar[9][0]
     _, grid, found, queue_lo, queue_hi, head, tail, starts, changes, place_rates = places
     owner, lo, hi, mid, lane_step = lanes[0], lanes[2], lanes[3], lanes[4], block_arrays[5]
-    taken, current, entered = 0, -1, -1
+    taken, current, entered, parts = 0, -1, -1, 1
     while True:
-        taken, current = _take_paths(places, scenes, start_rows, end_rows, steps, qpos0,
-                                     geometry, scalar, taken, current, parts, out)
+        taken, current, parts = _take_paths(places, scenes, start_rows, end_rows, steps,
+                                            qpos0, geometry, scalar, taken, current, parts,
+                                            out)
         width = _gather(places, lanes)
         if width == 0:
             if taken == count and np.all(places[0] < 0):
@@ -673,7 +673,9 @@ def _sample_collides(step, qpos, exact, counters):
 def _take_paths(places, scenes, start_rows, end_rows, steps, qpos0, geometry, scalar, taken,
                 current, parts, out):
     """Write out the paths whose queues are empty, and give their places to the next paths
-    of the scene in flight (``current``; −1: any). Returns (paths taken, scene)."""
+    of the scene in flight (``current``; −1: any, and then ``parts``, the first intervals
+    of each of its paths, is set from how many paths it has). Returns (paths taken, scene,
+    parts)."""
     path, grid, found, queue_lo, queue_hi, head, tail, starts, changes, place_rates = places
     rates, delta, start, dq = scalar[4], scalar[6], scalar[8], scalar[9][0]
     npair = place_rates.shape[1]
@@ -686,6 +688,8 @@ def _take_paths(places, scenes, start_rows, end_rows, steps, qpos0, geometry, sc
         e = scenes[0] if len(scenes) == 1 else scenes[taken]
         if current >= 0 and e != current:
             continue
+        if current < 0:  # a new scene: its paths share the lanes
+            parts = max(1, LANES // min(_scene_run(scenes, taken, len(steps)), LANES))
         current, m = e, taken
         taken += 1
         n = steps[m]
@@ -701,7 +705,18 @@ def _take_paths(places, scenes, start_rows, end_rows, steps, qpos0, geometry, sc
             starts[p, j], changes[p, j] = start[j], delta[j]
         for k in range(npair):
             place_rates[p, k] = rates[k]
-    return taken, current
+    return taken, current, parts
+
+
+@njit(inline="always")
+def _scene_run(scenes, taken, count):
+    """How many paths from ``taken`` on share its scene (one entry: every path)."""
+    if len(scenes) == 1:
+        return count - taken
+    run = 1
+    while taken + run < count and scenes[taken + run] == scenes[taken]:
+        run += 1
+    return run
 
 
 @njit

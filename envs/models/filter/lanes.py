@@ -2,7 +2,7 @@
 
 The scalar kernels bound one sample at a time. A path check of two or more paths keeps
 up to 16 of them in flight instead, each with the scalar loop's raked search, started
-from several intervals at once when the call has few paths (``kernels._lane_paths``):
+from several intervals at once when its scene has few paths (``kernels._lane_paths``):
 each round, the next interval of every path in turn fills the lanes, and the kernel's
 ``lane_block`` bounds their middle samples at once, returning per lane a free step (every
 pair farther than its margin within it), "in contact" (a witness: inner shapes closer

@@ -152,6 +152,47 @@ def test_path_checks_answer_the_same_with_the_lanes_as_without(arm_name):
         np.testing.assert_array_equal(alone.first_fraction, answers[1][2][m])
 
 
+def test_a_stack_checks_each_scenes_paths_lane_for_lane_as_its_own_filter():
+    # A vector env's survey asks a stack for a few paths in each sub-env's scene. The
+    # stack takes a scene's paths as a call of that scene's own filter would: the same
+    # first intervals per path (16 for a lone one), so the same lane calls, samples and
+    # MuJoCo checks, and the same answers.
+    from ikbranch_gym.envs.models.filter import FilterStack, path_steps
+    from ikbranch_gym.envs.models.scenes import CLUTTER_SLOTS, ClutterSlots, draw_clutter
+
+    arm = make_arm("ur5e")
+    checkers = []
+    for seed in (3, 4, 5, 6):
+        checker = CollisionChecker(build_model("ur5e", "random_clutter", seed=None),
+                                   dof=arm.dof)
+        slots = ClutterSlots(checker.model, CLUTTER_SLOTS)
+        slots.lay(draw_clutter(arm, seed, slots.base, CLUTTER_SLOTS), checker.model)
+        checker.refresh_static(slots.geoms)
+        checkers.append(checker)
+    stack = FilterStack([checker._filter for checker in checkers])
+    rng = np.random.default_rng(8)
+    scenes = np.array([0, 1, 1, 2, 3, 3, 3])  # runs of one, two and three paths
+    q0 = rng.uniform(arm.joint_limits[:, 0], arm.joint_limits[:, 1], (len(scenes), arm.dof))
+    q1 = q0 + rng.uniform(-0.3, 0.3, q0.shape)
+    steps = np.empty(len(scenes), dtype=np.int64)
+    path_steps(q0, q1, checkers[0].lever, checkers[0].resolution, steps)
+    for first in (True, False):
+        before = stack.counters.copy()
+        together = stack.paths(scenes, q0, q1, steps, first)
+        spent = stack.counters - before
+        alone, spent_alone = np.empty_like(together), np.zeros_like(spent)
+        for i, checker in enumerate(checkers):
+            mine = scenes == i
+            counters = checker._filter.counters
+            before = counters.copy()
+            alone[mine] = checker._filter.paths(q0[mine], q1[mine], steps[mine], first)
+            spent_alone += counters - before
+        np.testing.assert_array_equal(together, alone)
+        np.testing.assert_array_equal(spent, spent_alone)
+        assert spent[COUNTERS.index("lane calls")] > 0
+        assert 0 < (together >= 0).sum() < len(scenes)
+
+
 @pytest.mark.parametrize("arm_name", ARMS)
 def test_configuration_checks_answer_the_same_with_the_lanes_as_without(arm_name):
     checker = _checker(arm_name)
