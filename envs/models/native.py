@@ -76,6 +76,21 @@ def call_model_data(typingctx, function, model, data):
 
 
 @intrinsic
+def call_status(typingctx, function, argument):
+    """``function(argument)`` for an ``int64_t (void*)`` C function, its result; both
+    arguments are addresses (``uintp``)."""
+    signature = types.int64(types.uintp, types.uintp)
+
+    def codegen(context, builder, sig, args):
+        pointer = ir.IntType(8).as_pointer()
+        function_type = ir.FunctionType(ir.IntType(64), [pointer])
+        callee = builder.inttoptr(args[0], function_type.as_pointer())
+        return builder.call(callee, [builder.inttoptr(args[1], pointer)])
+
+    return signature, codegen
+
+
+@intrinsic
 def store_float64(typingctx, address, index, value):
     """``((double*) address)[index] = value``; ``address`` an address (``uintp``)."""
     signature = types.void(types.uintp, types.intp, types.float64)

@@ -57,6 +57,7 @@ from .. import native
 from .kernels import (
     COUNTERS,
     LANE_FUNCTION,
+    LANE_PATHS,
     LANE_SCENE,
     LANE_WORK,
     bound_configurations,
@@ -90,18 +91,19 @@ class CompiledFilter:
         self._model, self._data = model, data
         #: Totals since construction, named by ``COUNTERS`` (benchmarks and tests read them).
         self.counters = np.zeros(len(COUNTERS), dtype=np.int64)
-        exact = np.zeros((1, LANE_WORK + 1), dtype=np.uint64)
+        exact = np.zeros((1, LANE_PATHS + 1), dtype=np.uint64)
         exact[0, :LANE_FUNCTION] = native.exact_addresses(model, data)
         self._bind(compile_scene(model, dof, pairs), exact)
 
     def _bind(self, scene: CompiledScene, exact: np.ndarray) -> None:
-        """Read ``scene`` (one scene) and ``exact`` (its (1, 9) row: MuJoCo's addresses,
+        """Read ``scene`` (one scene) and ``exact`` (its (1, 10) row: MuJoCo's addresses,
         then the lanes', ``kernels.LANE_FUNCTION``) from now on."""
         self.scene, self._exact = scene, exact
         self.lanes = LaneScene(scene)
         exact[0, LANE_FUNCTION] = self.lanes.function if self.lanes.address else 0
         exact[0, LANE_SCENE] = self.lanes.address
         exact[0, LANE_WORK] = self.lanes.work_doubles
+        exact[0, LANE_PATHS] = self.lanes.paths_function if self.lanes.address else 0
         # The kernels' leading arguments, built once (the arrays are refreshed in place).
         self._bound = make_bound(scene.tree, scene.geometry, scene.motion, exact, self.counters)
 

@@ -20,7 +20,18 @@ from numba.experimental import structref
 from ikbranch_gym.envs.jit import njit
 
 from .. import native
-from .lanes import LANES
+from .lanes import (
+    LANES,
+    P_CURRENT,
+    P_HI,
+    P_LANE,
+    P_LO,
+    P_MID,
+    P_OWNER,
+    P_PATH,
+    PATHS_FIELDS,
+    PATHS_SCALAR,
+)
 from .layout import BOX, CAPSULE, CYLINDER, SPHERE
 from .shapes import _axis_in_cylinder, _bound_pair, _box_box, _inner_distance, _skewers
 from .tree import _forward, _local_speed, _path_rates, _path_sample, _place_slots, _slot_growth
@@ -42,8 +53,9 @@ COUNTERS = ("bounded", "mujoco", "pair bounds", "mujoco found free", "witnessed"
 #: by one. Paths take the lanes from one on (a lone path fills them with 16 intervals).
 LANE_MIN = 2
 #: Where a scene's lanes are in its row of ``exact`` (``CompiledFilter``): the kernel's
-#: address (0: no lanes), its ``Scene`` struct, the doubles of a call's work array.
-LANE_FUNCTION, LANE_SCENE, LANE_WORK = 6, 7, 8
+#: address (0: no lanes), its ``Scene`` struct, the doubles of a call's work array, the
+#: address of the path search that calls it (``lane_paths``).
+LANE_FUNCTION, LANE_SCENE, LANE_WORK, LANE_PATHS = 6, 7, 8, 9
 
 
 @njit(inline="always")
@@ -582,77 +594,75 @@ def _lane_paths(tree, geometry, motion, exact, scenes, start_rows, end_rows, ste
     proves free clears its step on both sides, one it proves in contact is a contact; any
     other is bounded by the scalar kernel (witnesses, MuJoCo). A finished path's place
     takes the next path of the same scene; a new scene waits until every path has
-    finished (one call reads one scene)."""
+    finished (one call reads one scene).
+
+    The rounds run in C (``lane_paths`` in lanes.c, the state in a ``Paths`` struct); it
+    hands back each sample the lanes leave undecided, which this loop bounds with the
+    scalar kernel, and goes on from there. Every path's start, change and rates are
+    computed here first, as the scalar loop computes them."""
     xpos, xmat, wpos, wrot, rates, coarse = _work(tree, geometry)
     qpos0 = tree[11]
     nq, npair, count = len(qpos0), len(geometry[7]), len(steps)
-    slots = len(motion[0])
-    scalar = (xpos, xmat, wpos, wrot, rates, coarse, np.zeros(nq), np.empty(nq), np.empty(nq),
-              (np.zeros(nq), np.zeros(slots), np.empty(slots)), np.full(1, -2, dtype=np.int64))
-    # Up to LANES paths in flight ("places"): path index (−1: none), grid, lowest contact
-    # found, queue of intervals, and the start, change and rates the lanes read.
-    size = _queue_size(steps)
-    places = (np.full(LANES, -1, dtype=np.int64), np.zeros(LANES, dtype=np.int64),
-              np.zeros(LANES, dtype=np.int64), np.empty((LANES, size), np.int64),
-              np.empty((LANES, size), np.int64), np.zeros(LANES, dtype=np.int64),
-              np.zeros(LANES, dtype=np.int64), np.empty((LANES, nq)), np.zeros((LANES, nq)),
-              np.zeros((LANES, npair)))
-    # A round: per lane its place, interval and middle sample, the path it has loaded.
-    lanes = (np.full(LANES, -1, dtype=np.int64), np.full(LANES, -1, dtype=np.int64),
-             np.zeros(LANES, dtype=np.int64), np.zeros(LANES, dtype=np.int64),
-             np.zeros(LANES, dtype=np.int64))
-    block_arrays, block = _lane_block(qpos0, npair, int(exact[scenes[0], LANE_WORK]))
-    # The per-lane work stays in this loop: as an inlined helper taking these arrays
-    # (numba reference-counts them per call) it measured 10–25 % slower on whole episodes.
-    kinematic, local, every_pair = tree[:12], scalar[9], scalar[10]
-    delta, qpos, start, dq = scalar[6], scalar[7], scalar[8], scalar[9][0]
-    _, grid, found, queue_lo, queue_hi, head, tail, starts, changes, place_rates = places
-    owner, lo, hi, mid, lane_step = lanes[0], lanes[2], lanes[3], lanes[4], block_arrays[5]
-    taken, current, entered, parts = 0, -1, -1, 1
-    while True:
-        taken, current, parts = _take_paths(places, scenes, start_rows, end_rows, steps,
-                                            qpos0, geometry, scalar, taken, current, parts,
-                                            out)
-        width = _gather(places, lanes)
-        if width == 0:
-            if taken == count and np.all(places[0] < 0):
-                return
-            current = -1  # every path of the scene is done: the next scene's
-            continue
-        e = current
-        _bound_lanes(places, lanes, block_arrays, block, width, exact[e], counters)
-        for lane in range(width):
-            p = owner[lane]
-            n, a, b, i = grid[p], lo[lane], hi[lane], mid[lane]
-            if i >= found[p] or (not first and found[p] <= n):
-                continue  # above a contact found this round, or the verdict is in
-            step = lane_step[lane]
-            if step == CONTACT:  # proven in contact by the lanes' witnesses
-                counters[7] += 1
-            elif step < 0.0:  # not proven by the lanes: the scalar kernel's sample
-                if e != entered:
-                    _enter(_scene(geometry, e), wpos, wrot)
-                    entered = e
-                start[:], delta[:], rates[:npair] = starts[p], changes[p], place_rates[p]
-                np.abs(delta, dq)
-                _path_sample(qpos, start, delta, i / n, nq)  # (no change past the dof)
-                counters[0] += 1
-                step = _sample_step_called(kinematic, _scene(geometry, e), qpos, xpos, xmat,
-                                           wpos, wrot, rates, coarse, max(i - a, b - i) / n,
-                                           counters, motion, local, True, every_pair)
-                if step < 0.0 and not _sample_collides(step, qpos, exact[e], counters):
-                    step = 0.0  # free as MuJoCo found it
-            if step < 0.0:
-                found[p] = i
-                if not first:
-                    head[p] = tail[p]  # the verdict is in
-                else:
-                    tail[p] = _push_interval(queue_lo[p], queue_hi[p], tail[p], a, i - 1)
-                continue
-            scaled = max(step, 0.0) * n
-            reach = n if scaled >= n else int(scaled)
-            tail[p] = _push_interval(queue_lo[p], queue_hi[p], tail[p], a, i - reach - 1)
-            tail[p] = _push_interval(queue_lo[p], queue_hi[p], tail[p], i + reach + 1, b)
+    grid = np.empty(count, dtype=np.int64)
+    scene_of = np.empty(len(scenes), dtype=np.int64)
+    grid[:], scene_of[:] = steps, scenes
+    starts, changes = np.empty((count, nq)), np.zeros((count, nq))
+    path_rates = np.zeros((count, npair))
+    dq = np.zeros(nq)
+    for m in range(count):
+        e = scene_of[0] if len(scene_of) == 1 else scene_of[m]
+        _fill_qpos(starts[m], qpos0, start_rows[0] if start_rows.shape[0] == 1 else start_rows[m])
+        _path_rates(starts[m], end_rows, m, geometry[10][e], changes[m], rates, dq)
+        path_rates[m] = rates[:npair]
+    addresses = np.empty(exact.shape[0], dtype=np.int64)
+    for e in range(exact.shape[0]):
+        addresses[e] = exact[e, LANE_SCENE]
+    size = _queue_size(grid)
+    queue_lo, queue_hi = np.empty((LANES, size), np.int64), np.empty((LANES, size), np.int64)
+    block_arrays, block = _lane_block(qpos0, npair, int(exact[scene_of[0], LANE_WORK]))
+    lane_step, found = block_arrays[5], np.empty(count, dtype=np.int64)
+    state = np.zeros(PATHS_FIELDS, dtype=np.int64)
+    state[0], state[1], state[2], state[3] = count, nq, npair, 1 if first else 0
+    state[4], state[5], state[6] = size, LANE_MIN, len(scene_of)
+    state[7], state[8] = grid.ctypes.data, scene_of.ctypes.data
+    state[9], state[10] = addresses.ctypes.data, starts.ctypes.data
+    state[11], state[12] = changes.ctypes.data, path_rates.ctypes.data
+    state[13], state[14] = found.ctypes.data, counters.ctypes.data
+    state[15], state[16], state[17] = queue_lo.ctypes.data, queue_hi.ctypes.data, block.ctypes.data
+    function = exact[scene_of[0], LANE_PATHS]
+    kinematic, local = tree[:12], (dq, np.zeros(len(motion[0])), np.empty(len(motion[0])))
+    delta, qpos, start = np.zeros(nq), np.empty(nq), np.empty(nq)
+    every_pair = np.full(1, -2, dtype=np.int64)
+    entered = -1
+    while native.call_status(function, state.ctypes.data) == PATHS_SCALAR:  # type: ignore[call-arg]
+        # The sample of lane ``state[P_LANE]``, left undecided by the lanes.
+        lane, e = state[P_LANE], state[P_CURRENT]
+        p = state[P_OWNER + lane]
+        m = state[P_PATH + p]
+        n, a, b, i = grid[m], state[P_LO + lane], state[P_HI + lane], state[P_MID + lane]
+        if e != entered:
+            _enter(_scene(geometry, e), wpos, wrot)
+            entered = e
+        start[:], delta[:], rates[:npair] = starts[m], changes[m], path_rates[m]
+        np.abs(delta, dq)
+        _path_sample(qpos, start, delta, i / n, nq)  # (no change past the dof)
+        counters[0] += 1
+        step = _sample_step_called(kinematic, _scene(geometry, e), qpos, xpos, xmat, wpos,
+                                   wrot, rates, coarse, max(i - a, b - i) / n, counters,
+                                   motion, local, True, every_pair)
+        if step < 0.0 and not _sample_collides(step, qpos, exact[e], counters):
+            step = 0.0  # free as MuJoCo found it
+        lane_step[lane] = step
+    out[:] = found
+    _alive((grid, scene_of, addresses, starts, changes, path_rates, queue_lo, queue_hi,
+            block, state), block_arrays)
+
+
+@njit(inline="always")
+def _alive(arrays, more):
+    """Nothing: called last, it keeps the arrays C reads by their addresses alive until
+    then (numba frees an array after its last use in the code)."""
+    return len(arrays) + len(more)
 
 
 @njit
@@ -669,45 +679,6 @@ def _sample_collides(step, qpos, exact, counters):
     return False
 
 
-@njit
-def _take_paths(places, scenes, start_rows, end_rows, steps, qpos0, geometry, scalar, taken,
-                current, parts, out):
-    """Write out the paths whose queues are empty, and give their places to the next paths
-    of the scene in flight (``current``; −1: any, and then ``parts``, the first intervals
-    of each of its paths, is set from how many paths it has). Returns (paths taken, scene,
-    parts)."""
-    path, grid, found, queue_lo, queue_hi, head, tail, starts, changes, place_rates = places
-    rates, delta, start, dq = scalar[4], scalar[6], scalar[8], scalar[9][0]
-    npair = place_rates.shape[1]
-    for p in range(LANES):
-        if path[p] >= 0 and head[p] == tail[p]:
-            out[path[p]] = found[p] if found[p] <= grid[p] else -1
-            path[p] = -1
-        if path[p] >= 0 or taken == len(steps):
-            continue
-        e = scenes[0] if len(scenes) == 1 else scenes[taken]
-        if current >= 0 and e != current:
-            continue
-        if current < 0:  # a new scene: its paths share the lanes
-            parts = max(1, LANES // min(_scene_run(scenes, taken, len(steps)), LANES))
-        current, m = e, taken
-        taken += 1
-        n = steps[m]
-        path[p], grid[p], found[p] = m, n, n + 1
-        split = min(parts, n + 1)
-        head[p], tail[p] = 0, split
-        for i in range(split):
-            queue_lo[p, i] = (i * (n + 1)) // split
-            queue_hi[p, i] = ((i + 1) * (n + 1)) // split - 1
-        _fill_qpos(start, qpos0, start_rows[0] if start_rows.shape[0] == 1 else start_rows[m])
-        _path_rates(start, end_rows, m, geometry[10][e], delta, rates, dq)
-        for j in range(len(start)):
-            starts[p, j], changes[p, j] = start[j], delta[j]
-        for k in range(npair):
-            place_rates[p, k] = rates[k]
-    return taken, current, parts
-
-
 @njit(inline="always")
 def _scene_run(scenes, taken, count):
     """How many paths from ``taken`` on share its scene (one entry: every path)."""
@@ -717,54 +688,6 @@ def _scene_run(scenes, taken, count):
     while taken + run < count and scenes[taken + run] == scenes[taken]:
         run += 1
     return run
-
-
-@njit
-def _gather(places, lanes):
-    """A round's intervals: every path's next one in turn until the lanes are full (into
-    ``lanes``' place, low, high and middle rows). Returns how many."""
-    path, found, queue_lo, queue_hi, head, tail = (places[0], places[2], places[3], places[4],
-                                                   places[5], places[6])
-    owner, lo, hi, mid = lanes[0], lanes[2], lanes[3], lanes[4]
-    width, more = 0, True
-    while more and width < LANES:
-        more = False
-        for p in range(LANES):
-            if width == LANES:
-                break
-            if path[p] < 0 or not _next_interval(queue_lo[p], queue_hi[p], head, tail, p,
-                                                 found[p], lo, hi, width):
-                continue
-            owner[width], mid[width] = p, (lo[width] + hi[width]) // 2
-            width += 1
-            more = True
-    return width
-
-
-@njit
-def _bound_lanes(places, lanes, block_arrays, block, width, exact, counters):
-    """Load the round's samples into the lane kernel's Block (a lane's start, change and
-    rates only when its path changed) and call it on the first ``width`` lanes; with
-    fewer than ``LANE_MIN`` they are left undecided (the scalar kernel's)."""
-    if width < LANE_MIN:
-        block_arrays[5][:width] = UNDECIDED
-        return
-    path, grid, starts, changes, place_rates = (places[0], places[1], places[7], places[8],
-                                                places[9])
-    owner, loaded, lo, hi, mid = lanes
-    lane_start, lane_change, lane_t, lane_cap, lane_rates = block_arrays[:5]
-    for lane in range(width):
-        p = owner[lane]
-        if loaded[lane] != path[p]:
-            loaded[lane] = path[p]
-            for j in range(starts.shape[1]):
-                lane_start[j, lane], lane_change[j, lane] = starts[p, j], changes[p, j]
-            for k in range(place_rates.shape[1]):
-                lane_rates[k, lane] = place_rates[p, k]
-        n = grid[p]
-        lane_t[lane] = mid[lane] / n
-        lane_cap[lane] = max(mid[lane] - lo[lane], hi[lane] - mid[lane]) / n
-    _call_lanes(exact, block, width, counters)
 
 
 @njit
@@ -792,22 +715,6 @@ def _call_lanes(exact, block, width, counters):
                            block.ctypes.data)
     counters[5] += width
     counters[6] += 1
-
-
-@njit(inline="always")
-def _next_interval(queue_lo, queue_hi, head, tail, p, found, lo, hi, lane):
-    """Pop path ``p``'s next interval that still holds grid indices below ``found`` into
-    ``lo[lane]``, ``hi[lane]``; False when its queue is empty."""
-    size = len(queue_lo)
-    while head[p] != tail[p]:
-        a, b = queue_lo[head[p]], queue_hi[head[p]]
-        head[p] = (head[p] + 1) % size
-        if b >= found:
-            b = found - 1
-        if a <= b:
-            lo[lane], hi[lane] = a, b
-            return True
-    return False
 
 
 @njit(inline="always")

@@ -459,3 +459,188 @@ void lane_block(const Scene *S, Block *B) {
   }
   for (int l = 0; l < W; l++) steps[l] = contact[l] > 0.0 ? CONTACT : steps[l];
 }
+
+/* ------------------------------------------------------------------ path searches
+ * The raked search of kernels._lane_paths, up to L paths in flight: each path keeps a
+ * queue of grid intervals [lo, hi] and its lowest contact found; a round takes the next
+ * interval of every path in turn until the lanes are full, bounds their middle samples
+ * (lane_block) and goes on as the scalar loop does. A sample the lanes prove neither
+ * free nor in contact is handed back: lane_paths returns PATHS_SCALAR with `lane` set,
+ * the caller writes that sample's step into the block (>= 0 free, < 0 in contact) and
+ * calls again, which goes on from that lane. The paths of one scene share the lanes; a
+ * new scene waits until every path of the one before has finished. */
+enum { PATHS_DONE = 0, PATHS_SCALAR = 1 };
+
+/* One call's search: set by the caller (kernels._lane_paths; every field 8 bytes, in
+ * this order), then the search's own state (zero to begin). */
+typedef struct {
+  int64_t count, nq, npair, first, size, lane_min, nscenes;
+  const int64_t *steps, *scenes;     /* steps[count]; scenes[nscenes]: 1, or count */
+  const uint64_t *scene_address;     /* per scene index: its Scene */
+  const double *start, *change, *rates;  /* per path: [count][nq], [count][nq], [count][npair] */
+  int64_t *out, *counters, *queue_lo, *queue_hi;  /* queues: [L][size] */
+  Block *block;
+  int64_t started, taken, current, parts, width, lane, in_round, resume;
+  int64_t path[L], grid[L], found[L], head[L], tail[L];  /* the places: paths in flight */
+  int64_t owner[L], loaded[L], lo[L], hi[L], mid[L];     /* the round's lanes */
+} Paths;
+
+/* sizeof(Paths) in int64 fields, for the caller to check its layout against. */
+int64_t lane_paths_fields(void) { return (int64_t)(sizeof(Paths) / sizeof(int64_t)); }
+
+static inline int64_t path_scene(const Paths *P, int64_t m) {
+  return P->nscenes == 1 ? P->scenes[0] : P->scenes[m];
+}
+
+static inline int64_t push_interval(const Paths *P, int64_t p, int64_t tail, int64_t lo,
+                                    int64_t hi) {
+  if (lo <= hi) {
+    P->queue_lo[p * P->size + tail] = lo, P->queue_hi[p * P->size + tail] = hi;
+    tail = (tail + 1) % P->size;
+  }
+  return tail;
+}
+
+/* Write out the paths whose queues are empty; give their places to the next paths of the
+ * scene in flight (current; -1: any, whose paths then set the first intervals of each:
+ * as many as that scene's own filter would start them from). */
+static void take_paths(Paths *P) {
+  for (int p = 0; p < L; p++) {
+    if (P->path[p] >= 0 && P->head[p] == P->tail[p]) {
+      P->out[P->path[p]] = P->found[p] <= P->grid[p] ? P->found[p] : -1;
+      P->path[p] = -1;
+    }
+    if (P->path[p] >= 0 || P->taken == P->count) continue;
+    int64_t e = path_scene(P, P->taken);
+    if (P->current >= 0 && e != P->current) continue;
+    if (P->current < 0) {
+      int64_t run = P->count - P->taken;
+      if (P->nscenes != 1) {
+        run = 1;
+        while (P->taken + run < P->count && P->scenes[P->taken + run] == e) run++;
+      }
+      P->parts = MAX(1, L / MIN(run, L));
+    }
+    P->current = e;
+    int64_t m = P->taken++, n = P->steps[m];
+    P->path[p] = m, P->grid[p] = n, P->found[p] = n + 1;
+    int64_t split = MIN(P->parts, n + 1);
+    P->head[p] = 0, P->tail[p] = split;
+    for (int64_t i = 0; i < split; i++) {
+      P->queue_lo[p * P->size + i] = (i * (n + 1)) / split;
+      P->queue_hi[p * P->size + i] = ((i + 1) * (n + 1)) / split - 1;
+    }
+  }
+}
+
+/* Pop path p's next interval that still holds grid indices below its contact into lane. */
+static inline int next_interval(Paths *P, int64_t p, int lane) {
+  const int64_t *qlo = P->queue_lo + p * P->size, *qhi = P->queue_hi + p * P->size;
+  while (P->head[p] != P->tail[p]) {
+    int64_t a = qlo[P->head[p]], b = qhi[P->head[p]];
+    P->head[p] = (P->head[p] + 1) % P->size;
+    if (b >= P->found[p]) b = P->found[p] - 1;
+    if (a <= b) {
+      P->lo[lane] = a, P->hi[lane] = b;
+      return 1;
+    }
+  }
+  return 0;
+}
+
+/* A round's intervals: every path's next one in turn until the lanes are full. */
+static int gather(Paths *P) {
+  int width = 0, more = 1;
+  while (more && width < L) {
+    more = 0;
+    for (int p = 0; p < L; p++) {
+      if (width == L) break;
+      if (P->path[p] < 0 || !next_interval(P, p, width)) continue;
+      P->owner[width] = p, P->mid[width] = (P->lo[width] + P->hi[width]) / 2;
+      width++;
+      more = 1;
+    }
+  }
+  return width;
+}
+
+/* Load the round's samples into the block (a lane's start, change and rates only when its
+ * path changed) and bound them; with fewer than lane_min they are left undecided. */
+static void bound_round(Paths *P, int width) {
+  Block *B = P->block;
+  double *step = B->step;
+  if (width < P->lane_min) {
+    for (int l = 0; l < width; l++) step[l] = -1.0;
+    return;
+  }
+  double *start = (double *)B->start, *change = (double *)B->change, *t = (double *)B->t;
+  double *cap = (double *)B->cap, *rates = (double *)B->rates;
+  for (int l = 0; l < width; l++) {
+    int64_t p = P->owner[l], m = P->path[p];
+    if (P->loaded[l] != m) {
+      P->loaded[l] = m;
+      for (int64_t j = 0; j < P->nq; j++)
+        start[j * L + l] = P->start[m * P->nq + j], change[j * L + l] = P->change[m * P->nq + j];
+      for (int64_t k = 0; k < P->npair; k++) rates[k * L + l] = P->rates[m * P->npair + k];
+    }
+    double n = (double)P->grid[p];
+    t[l] = (double)P->mid[l] / n;
+    cap[l] = (double)MAX(P->mid[l] - P->lo[l], P->hi[l] - P->mid[l]) / n;
+  }
+  B->width = width;
+  lane_block((const Scene *)(uintptr_t)P->scene_address[P->current], B);
+  P->counters[5] += width;
+  P->counters[6] += 1;
+}
+
+int64_t lane_paths(Paths *P) {
+  if (!P->started) {
+    P->started = 1, P->taken = 0, P->current = -1, P->parts = 1, P->in_round = 0;
+    for (int l = 0; l < L; l++) P->path[l] = -1, P->loaded[l] = -1;
+  }
+  for (;;) {
+    if (!P->in_round) {
+      take_paths(P);
+      int width = gather(P);
+      if (width == 0) {
+        if (P->taken == P->count) {
+          int empty = 1;
+          for (int p = 0; p < L; p++) empty &= P->path[p] < 0;
+          if (empty) return PATHS_DONE;
+        }
+        P->current = -1;  /* every path of the scene is done: the next scene's */
+        continue;
+      }
+      bound_round(P, width);
+      P->width = width, P->lane = 0, P->in_round = 1, P->resume = 0;
+    }
+    for (; P->lane < P->width; P->lane++) {
+      int64_t l = P->lane, p = P->owner[l];
+      int64_t n = P->grid[p], a = P->lo[l], b = P->hi[l], i = P->mid[l];
+      double step = P->block->step[l];
+      if (P->resume) {
+        P->resume = 0;  /* the scalar kernel's step */
+      } else {
+        if (i >= P->found[p] || (!P->first && P->found[p] <= n))
+          continue;  /* above a contact found this round, or the verdict is in */
+        if (step == CONTACT) {
+          P->counters[7] += 1;
+        } else if (step < 0.0) {
+          P->resume = 1;
+          return PATHS_SCALAR;
+        }
+      }
+      if (step < 0.0) {
+        P->found[p] = i;
+        if (!P->first) P->head[p] = P->tail[p];
+        else P->tail[p] = push_interval(P, p, P->tail[p], a, i - 1);
+        continue;
+      }
+      double scaled = MAX(step, 0.0) * (double)n;
+      int64_t reach = scaled >= (double)n ? n : (int64_t)scaled;
+      P->tail[p] = push_interval(P, p, P->tail[p], a, i - reach - 1);
+      P->tail[p] = push_interval(P, p, P->tail[p], i + reach + 1, b);
+    }
+    P->in_round = 0;
+  }
+}

@@ -1,14 +1,15 @@
 """Lanes: 16 samples bounded in one call of a small C kernel (``lanes.c``).
 
-The scalar kernels bound one sample at a time. A path check of two or more paths keeps
-up to 16 of them in flight instead, each with the scalar loop's raked search, started
-from several intervals at once when its scene has few paths (``kernels._lane_paths``):
-each round, the next interval of every path in turn fills the lanes, and the kernel's
-``lane_block`` bounds their middle samples at once, returning per lane a free step (every
-pair farther than its margin within it), "in contact" (a witness: inner shapes closer
-than the pair's contact distance, as the scalar witnesses prove it) or "not proven"; a
-sample the lanes do not prove goes to the scalar kernel, witnesses and MuJoCo exactly as
-before. A configuration check of two or more rows fills the lanes with rows
+The scalar kernels bound one sample at a time. A path check keeps up to 16 paths in
+flight instead, each with the scalar loop's raked search, started from several intervals
+at once when its scene has few paths (``kernels._lane_paths``): each round, the next
+interval of every path in turn fills the lanes, and the kernel's ``lane_block`` bounds
+their middle samples at once, returning per lane a free step (every pair farther than its
+margin within it), "in contact" (a witness: inner shapes closer than the pair's contact
+distance, as the scalar witnesses prove it) or "not proven"; a sample the lanes do not
+prove goes to the scalar kernel, witnesses and MuJoCo exactly as before. The rounds run
+in C too (``lane_paths``), which hands each such sample back to the numba loop that
+called it and goes on from there. A configuration check of two or more rows fills the lanes with rows
 (``kernels._lane_configurations``). The lanes prove only what the scalar kernels would,
 so every verdict and first colliding sample stays MuJoCo's.
 
@@ -50,6 +51,14 @@ from .layout import CAPSULE, CYLINDER, SPHERE, CompiledScene
 
 #: Samples per call (the C kernel's ``L``).
 LANES = 16
+#: lanes.c's ``Paths`` (``lane_paths``' state, every field an int64): its size, what
+#: ``lane_paths`` returns when it hands a sample back, and the fields the caller reads:
+#: the scene in flight, the lane handed back, then per place its path and per lane its
+#: place and interval (arrays of ``LANES`` from ``P_PATH`` on: path, grid, found, head,
+#: tail, owner, loaded, lo, hi, mid).
+PATHS_FIELDS, PATHS_SCALAR = 26 + 10 * LANES, 1
+P_CURRENT, P_LANE, P_PATH = 20, 23, 26
+P_OWNER, P_LO, P_HI, P_MID = (P_PATH + k * LANES for k in (5, 7, 8, 9))
 #: A cover sphere's centres lie at most this fraction of the geom's radius apart (half
 #: spacing): a capsule or cylinder of radius r is held by spheres of radius ≤ 1.118·r.
 COVER_SPACING = 0.5
@@ -157,7 +166,12 @@ def library() -> ctypes.CDLL | None:
                               f"{problem}; running without them", RuntimeWarning, stacklevel=2)
                 return None
             os.replace(built, target)  # atomic: parallel processes may build it too
-    return ctypes.CDLL(str(target))
+    lib = ctypes.CDLL(str(target))
+    lib.lane_paths_fields.restype = ctypes.c_int64
+    if lib.lane_paths_fields() != PATHS_FIELDS:
+        raise RuntimeError(f"lanes.c's Paths has {lib.lane_paths_fields()} fields, "
+                           f"kernels.PATHS_FIELDS {PATHS_FIELDS}: the two must agree")
+    return lib
 
 
 _POINTERS = ("body_parent body_pos body_rot body_jntadr body_jntnum body_flags jnt_type "
@@ -183,7 +197,7 @@ class LaneScene:
 
     def __init__(self, scene: CompiledScene) -> None:
         self._arrays: list[np.ndarray] = []  # kept alive while the struct points at them
-        self.address = self.function = 0
+        self.address = self.function = self.paths_function = 0
         lib = library()
         self.covers = covers(scene)
         self.witnesses = witness_points(scene)
@@ -215,6 +229,8 @@ class LaneScene:
         self._call.argtypes, self._call.restype = [ctypes.c_void_p, ctypes.c_void_p], None
         self.address = ctypes.addressof(struct)
         self.function = ctypes.cast(lib.lane_block, ctypes.c_void_p).value or 0
+        #: The path search over this kernel (``kernels._lane_paths`` calls it).
+        self.paths_function = ctypes.cast(lib.lane_paths, ctypes.c_void_p).value or 0
         self._sizes = (len(scene.body_parent), len(scene.pair_a), len(scene.qpos0))
 
     def bound(self, start: np.ndarray, change: np.ndarray, t: np.ndarray, cap: np.ndarray,
