@@ -160,24 +160,26 @@ def _slot(keys, tokens, states, token, key):
 
 
 @njit(inline="always")
-def _memo_slot(ep, token, start, end):
+def _memo_slot(ep, token, start, end, key):
     """The memo slot of the path ``start`` → ``end`` in scene ``token`` (keyed by the exact
-    bits of both ends): where it is, or the empty slot where it would go."""
-    return _slot(ep.memo_keys, ep.memo_tokens, ep.memo_verdicts, token,
-                 np.concatenate((start.view(np.int64), end.view(np.int64))))
+    bits of both ends, written into ``key``): where it is, or the empty slot where it would
+    go."""
+    dof = len(start)
+    key[:dof], key[dof:] = start.view(np.int64), end.view(np.int64)
+    return _slot(ep.memo_keys, ep.memo_tokens, ep.memo_verdicts, token, key)
 
 
 @njit(inline="always")
-def _memo_put(ep, token, start, end, hit):
-    """Remember the verdict of ``start`` → ``end`` in scene ``token``."""
+def _memo_put(ep, token, start, end, hit, key):
+    """Remember the verdict of ``start`` → ``end`` in scene ``token`` (``key``: room for
+    its key)."""
     if 2 * ep.memo_count[0] >= len(ep.memo_tokens):  # half full: start afresh
         ep.memo_verdicts[:] = -1
         ep.memo_count[0] = 0
-    slot = _memo_slot(ep, token, start, end)
+    slot = _memo_slot(ep, token, start, end, key)
     if ep.memo_verdicts[slot] < 0:
         ep.memo_count[0] += 1
-    dof = len(start)
-    ep.memo_keys[slot, :dof], ep.memo_keys[slot, dof:] = start.view(np.int64), end.view(np.int64)
+    ep.memo_keys[slot] = key
     ep.memo_tokens[slot] = token
     ep.memo_verdicts[slot] = 1 if hit else 0
 
@@ -190,9 +192,10 @@ def _paths_collide(ep, bound, rows, starts, ends):
     count = len(rows)
     out = np.zeros(count, dtype=np.bool_)
     missing = np.empty(count, dtype=np.int64)
+    key = np.empty(2 * starts.shape[1], dtype=np.int64)
     misses = 0
     for m in range(count):
-        slot = _memo_slot(ep, ep.tokens[rows[m]], starts[m], ends[m])
+        slot = _memo_slot(ep, ep.tokens[rows[m]], starts[m], ends[m], key)
         verdict = ep.memo_verdicts[slot]
         if verdict >= 0:
             out[m] = verdict == 1
@@ -215,7 +218,7 @@ def _paths_collide(ep, bound, rows, starts, ends):
         for i in range(misses):
             m = picked[i]
             out[m] = hits[i]
-            _memo_put(ep, ep.tokens[rows[m]], starts[m], ends[m], out[m])
+            _memo_put(ep, ep.tokens[rows[m]], starts[m], ends[m], out[m], key)
     return out
 
 

@@ -9,9 +9,9 @@ margin within it), "in contact" (a witness: inner shapes closer than the pair's 
 distance, as the scalar witnesses prove it) or "not proven"; a sample the lanes do not
 prove goes to the scalar kernel, witnesses and MuJoCo exactly as before. The rounds run
 in C too (``lane_paths``), which hands each such sample back to the numba loop that
-called it and goes on from there. A configuration check of two or more rows fills the lanes with rows
-(``kernels._lane_configurations``). The lanes prove only what the scalar kernels would,
-so every verdict and first colliding sample stays MuJoCo's.
+called it and goes on from there. A configuration check of two or more rows fills the
+lanes with rows (``kernels._lane_configurations``). The lanes prove only what the scalar
+kernels would, so every verdict and first colliding sample stays MuJoCo's.
 
 The lanes' bounds hold each moving geom's container in spheres on its axis
 (:func:`covers`): a cover sphere's centre measured to the partner's container, less its
