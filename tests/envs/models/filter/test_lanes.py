@@ -293,6 +293,17 @@ def test_without_a_c_compiler_the_lanes_say_so_and_stay_off(monkeypatch):
         assert library.__wrapped__() is None
 
 
+
+def test_a_path_search_state_that_disagrees_with_lanes_c_is_refused(monkeypatch):
+    # The numba loop lays out lanes.c's Paths struct by PATHS_FIELDS; loading a kernel
+    # whose struct has another size is an error, not a search reading the wrong fields.
+    from ikbranch_gym.envs.models.filter import lanes
+
+    assert library() is not None
+    monkeypatch.setattr(lanes, "PATHS_FIELDS", lanes.PATHS_FIELDS + 1)
+    with pytest.raises(RuntimeError, match="Paths has 186 fields"):
+        library.__wrapped__()
+
 def _rod_and_ball(offset: float) -> tuple[CollisionChecker, np.ndarray, np.ndarray]:
     """A capsule rod sliding along its axis (x) toward a ball ahead of its end and beside
     its axis, the whole cell ``offset`` metres from the world's origin: while the ball is
