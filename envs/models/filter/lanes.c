@@ -30,6 +30,7 @@
  * inner loop is one run of SIMD instructions; no per-model code.
  */
 #include <math.h>
+#include <stddef.h>
 #include <stdint.h>
 
 #define L 16
@@ -485,8 +486,19 @@ typedef struct {
   int64_t owner[L], loaded[L], lo[L], hi[L], mid[L];     /* the round's lanes */
 } Paths;
 
-/* sizeof(Paths) in int64 fields, for the caller to check its layout against. */
-int64_t lane_paths_fields(void) { return (int64_t)(sizeof(Paths) / sizeof(int64_t)); }
+/* The layout the caller lays Paths out by, in int64 fields: the offsets of the fields it
+ * sets (count ... block) and reads (current, lane, path, owner, lo, hi, mid), the
+ * struct's size and PATHS_SCALAR; lanes.py checks them against its own. */
+void lane_paths_layout(int64_t *out) {
+#define AT(field) (int64_t)(offsetof(Paths, field) / sizeof(int64_t))
+  const int64_t layout[] = {
+      AT(count), AT(nq), AT(npair), AT(first), AT(size), AT(lane_min), AT(nscenes), AT(steps),
+      AT(scenes), AT(scene_address), AT(start), AT(change), AT(rates), AT(out), AT(counters),
+      AT(queue_lo), AT(queue_hi), AT(block), AT(current), AT(lane), AT(path), AT(owner),
+      AT(lo), AT(hi), AT(mid), (int64_t)(sizeof(Paths) / sizeof(int64_t)), PATHS_SCALAR};
+#undef AT
+  for (int i = 0; i < (int)(sizeof(layout) / sizeof(layout[0])); i++) out[i] = layout[i];
+}
 
 static inline int64_t path_scene(const Paths *P, int64_t m) {
   return P->nscenes == 1 ? P->scenes[0] : P->scenes[m];

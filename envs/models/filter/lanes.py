@@ -167,11 +167,21 @@ def library() -> ctypes.CDLL | None:
                 return None
             os.replace(built, target)  # atomic: parallel processes may build it too
     lib = ctypes.CDLL(str(target))
-    lib.lane_paths_fields.restype = ctypes.c_int64
-    if lib.lane_paths_fields() != PATHS_FIELDS:
-        raise RuntimeError(f"lanes.c's Paths has {lib.lane_paths_fields()} fields, "
-                           f"kernels.PATHS_FIELDS {PATHS_FIELDS}: the two must agree")
+    expected = _paths_layout()
+    layout = np.zeros(len(expected), dtype=np.int64)
+    lib.lane_paths_layout(ctypes.c_void_p(layout.ctypes.data))
+    if tuple(layout.tolist()) != expected:
+        raise RuntimeError(f"lanes.c lays its Paths out as {tuple(layout.tolist())}, the "
+                           f"kernels read it as {expected}: the two must agree")
     return lib
+
+
+def _paths_layout() -> tuple[int, ...]:
+    """``Paths`` as the kernels read it, in the order of lanes.c's ``lane_paths_layout``:
+    the offsets of the 18 fields they set (in struct order), of the fields they read, its
+    size, ``PATHS_SCALAR``."""
+    return (*range(18), P_CURRENT, P_LANE, P_PATH, P_OWNER, P_LO, P_HI, P_MID, PATHS_FIELDS,
+            PATHS_SCALAR)
 
 
 _POINTERS = ("body_parent body_pos body_rot body_jntadr body_jntnum body_flags jnt_type "

@@ -294,14 +294,15 @@ def test_without_a_c_compiler_the_lanes_say_so_and_stay_off(monkeypatch):
 
 
 
-def test_a_path_search_state_that_disagrees_with_lanes_c_is_refused(monkeypatch):
-    # The numba loop lays out lanes.c's Paths struct by PATHS_FIELDS; loading a kernel
-    # whose struct has another size is an error, not a search reading the wrong fields.
+@pytest.mark.parametrize("name", ["PATHS_FIELDS", "P_MID", "PATHS_SCALAR"])
+def test_a_path_search_state_that_disagrees_with_lanes_c_is_refused(monkeypatch, name):
+    # The numba loop lays out lanes.c's Paths struct by the constants of lanes.py; a kernel
+    # whose struct is laid out otherwise is an error, not a search reading wrong fields.
     from ikbranch_gym.envs.models.filter import lanes
 
     assert library() is not None
-    monkeypatch.setattr(lanes, "PATHS_FIELDS", lanes.PATHS_FIELDS + 1)
-    with pytest.raises(RuntimeError, match="Paths has 186 fields"):
+    monkeypatch.setattr(lanes, name, getattr(lanes, name) + 1)
+    with pytest.raises(RuntimeError, match=r"lays its Paths out as .* 170, 186, 1\)"):
         library.__wrapped__()
 
 def _rod_and_ball(offset: float) -> tuple[CollisionChecker, np.ndarray, np.ndarray]:
