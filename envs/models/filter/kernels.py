@@ -631,7 +631,7 @@ def _lane_paths(tree, geometry, motion, exact, scenes, start_rows, end_rows, ste
     state[15], state[16], state[17] = queue_lo.ctypes.data, queue_hi.ctypes.data, block.ctypes.data
     function = exact[scene_of[0], LANE_PATHS]
     kinematic, local = tree[:12], (dq, np.zeros(len(motion[0])), np.empty(len(motion[0])))
-    delta, qpos, start = np.zeros(nq), np.empty(nq), np.empty(nq)
+    qpos = np.empty(nq)
     every_pair = np.full(1, -2, dtype=np.int64)
     entered = -1
     while native.call_status(function, state.ctypes.data) == PATHS_SCALAR:  # type: ignore[call-arg]
@@ -643,9 +643,9 @@ def _lane_paths(tree, geometry, motion, exact, scenes, start_rows, end_rows, ste
         if e != entered:
             _enter(_scene(geometry, e), wpos, wrot)
             entered = e
-        start[:], delta[:], rates[:npair] = starts[m], changes[m], path_rates[m]
-        np.abs(delta, dq)
-        _path_sample(qpos, start, delta, i / n, nq)  # (no change past the dof)
+        rates[:npair] = path_rates[m]
+        np.abs(changes[m], dq)
+        _path_sample(qpos, starts[m], changes[m], i / n, nq)  # (no change past the dof)
         counters[0] += 1
         step = _sample_step_called(kinematic, _scene(geometry, e), qpos, xpos, xmat, wpos,
                                    wrot, rates, coarse, max(i - a, b - i) / n, counters,
