@@ -767,8 +767,7 @@ class IKBranchEnv(gym.Env):
         clutter.lay(obstacles, self.model, checker.model)
         checker.refresh_static(clutter.geoms)
         if checker.collides(self.arm.home):
-            touching = {name for c in checker.contacts(self.arm.home)
-                        for name in (c.body1, c.body2)}
+            touching = checker.contact_bodies(self.arm.home)
             obstacles = [o for o in obstacles if f"clutter{o.slot}" not in touching]
             clutter.lay(obstacles, self.model, checker.model)
             checker.refresh_static(clutter.geoms)

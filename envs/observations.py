@@ -98,7 +98,8 @@ def _turn_tables(candidates: np.ndarray, valid: np.ndarray, endpoint: np.ndarray
     ``free[i, c]``. Returns False where the ladder is not such a product (a value that
     differs between turn copies, validity that is not the product of the windows', an
     endpoint verdict that differs between copies): the caller then takes the general
-    kernel."""
+    kernel. (One loop, no helper: numba takes a reference on each array passed to one,
+    which cost more than the work.)"""
     n, k, dof = candidates.shape
     jt = len(turned)
     fixed = np.zeros((n, n_closed, dof))
@@ -112,46 +113,34 @@ def _turn_tables(candidates: np.ndarray, valid: np.ndarray, endpoint: np.ndarray
     factored = True
     for i in range(n):
         for b in range(k):
-            if valid[i, b] and not _factor_branch(candidates, endpoint, i, b, closed, turns,
-                                                  turned, is_turned, fixed, turned_value,
-                                                  window_ok, exists, free):
+            if not valid[i, b]:
+                continue
+            # Enter valid branch b (closed form c, windows turns[b]) into the factors of
+            # waypoint i; a contradiction with what its turn copies entered ends the product.
+            c, hit = closed[b], endpoint[i, b]
+            first = not exists[i, c]
+            if first:
+                exists[i, c], free[i, c] = True, not hit
+            elif free[i, c] == hit:
                 factored = False
+            for j in range(dof):
+                if not is_turned[j]:
+                    if first:
+                        fixed[i, c, j] = candidates[i, b, j]
+                    elif fixed[i, c, j] != candidates[i, b, j]:
+                        factored = False
+            for t in range(jt):
+                w = turns[b, t]
+                value = candidates[i, b, turned[t]]
+                if window_ok[i, c, t, w] and turned_value[i, c, t, w] != value:
+                    factored = False
+                turned_value[i, c, t, w], window_ok[i, c, t, w] = value, True
         for b in range(k):  # validity is the product of the windows'
             product = exists[i, closed[b]]
             for t in range(jt):
                 product = product and window_ok[i, closed[b], t, turns[b, t]]
             factored = factored and product == valid[i, b]
     return factored, fixed, turned_value, window_ok, free
-
-
-@njit(inline="always")
-def _factor_branch(candidates: np.ndarray, endpoint: np.ndarray, i: int, b: int,
-                   closed: np.ndarray, turns: np.ndarray, turned: np.ndarray,
-                   is_turned: np.ndarray, fixed: np.ndarray, turned_value: np.ndarray,
-                   window_ok: np.ndarray, exists: np.ndarray, free: np.ndarray) -> bool:
-    """Enter valid branch ``b`` of waypoint ``i`` (closed-form ``closed[b]``, windows
-    ``turns[b]`` of its turned joints) into the factors of its waypoint; False where it
-    contradicts what its turn copies entered. (Whole arrays and indices: views made per
-    branch cost more than the work.)"""
-    c, hit = closed[b], endpoint[i, b]
-    first = not exists[i, c]
-    if first:
-        exists[i, c], free[i, c] = True, not hit
-    elif free[i, c] == hit:
-        return False
-    for j in range(candidates.shape[2]):
-        if not is_turned[j]:
-            if first:
-                fixed[i, c, j] = candidates[i, b, j]
-            elif fixed[i, c, j] != candidates[i, b, j]:
-                return False
-    for t in range(len(turned)):
-        w = turns[b, t]
-        value = candidates[i, b, turned[t]]
-        if window_ok[i, c, t, w] and turned_value[i, c, t, w] != value:
-            return False
-        turned_value[i, c, t, w], window_ok[i, c, t, w] = value, True
-    return True
 
 
 @njit
@@ -184,24 +173,48 @@ def _joint_terms(src_fixed: np.ndarray, src_value: np.ndarray, src_ok: np.ndarra
 
 
 @njit(inline="always")
-def _least_over(term: np.ndarray, closed: np.ndarray, turns: np.ndarray, b: int,
-                free: np.ndarray, other: int, slot: np.ndarray) -> float:
-    """The least travel from branch ``b`` (closed form ``closed[b]``, turn windows
-    ``turns[b]``) to any free branch of waypoint ``other`` (``free[other]``: its free
-    closed forms), summed from :func:`_joint_terms` in joint order, as the general kernel
-    sums it. Each free closed-form branch's best turn copy takes each turned joint's best
-    window: addition is monotonic, so that sum is the least of its copies' sums exactly."""
-    best = np.inf
-    c = closed[b]
-    for d in range(free.shape[1]):
-        if not free[other, d]:
+def _window_sums(term: np.ndarray, c: int, d: int, slot: np.ndarray, windows: int,
+                 sums: np.ndarray) -> int:
+    """``sums[leaf]``: the travel from closed-form branch ``c`` of one waypoint to ``d`` of
+    another for every choice of windows of the turned joints (``leaf``: those windows as
+    the digits of a base-``windows`` number, in joint order), each summed from
+    :func:`_joint_terms` in joint order, as the general kernel sums it. The choices share
+    their sums up to each joint: a sum is extended once per window of the next turned
+    joint, not recomputed per branch. Returns the number of leaves."""
+    sums[0] = 0.0
+    size = 1
+    for j in range(term.shape[2]):
+        t = slot[j]
+        if t < 0:
+            step = term[c, d, j, 0]
+            for p in range(size):
+                sums[p] += step
             continue
-        total = 0.0
-        for j in range(term.shape[2]):
-            t = slot[j]
-            total += term[c, d, j, 0 if t < 0 else turns[b, t]]
-        best = min(best, total)
-    return best
+        for p in range(size - 1, -1, -1):  # from the top: p · windows + w ≥ p
+            base = sums[p]
+            for w in range(windows):
+                sums[p * windows + w] = base + term[c, d, j, w]
+        size *= windows
+    return size
+
+
+@njit(inline="always")
+def _least_by_windows(term: np.ndarray, free: np.ndarray, other: int, slot: np.ndarray,
+                      windows: int, sums: np.ndarray, least: np.ndarray) -> None:
+    """``least[c, leaf]``: the least travel from closed-form branch c in the windows
+    ``leaf`` (:func:`_window_sums`) to any free branch of waypoint ``other`` (``free[other]``:
+    its free closed forms). Each free closed-form branch's best turn copy takes each turned
+    joint's best window: addition is monotonic, so that sum is the least of its copies'
+    sums exactly."""
+    kc = term.shape[0]
+    least[:] = np.inf
+    for c in range(kc):
+        for d in range(kc):
+            if not free[other, d]:
+                continue
+            size = _window_sums(term, c, d, slot, windows, sums)
+            for p in range(size):
+                least[c, p] = min(least[c, p], sums[p])
 
 
 @njit
@@ -211,29 +224,37 @@ def _turned_travel_summaries(valid: np.ndarray, tables: _TurnTables, closed: np.
     """:func:`_travel_summaries` (the same values, bit for bit) from the factors of a
     ladder with turn branches (:func:`_turn_tables`; ``closed``, ``turns``: each branch's
     closed form and windows): per pair of waypoints each joint's travel between closed
-    forms and windows once, then per branch a sum of ``dof`` terms for each closed form,
-    where the general kernel sums over every pair of branches."""
+    forms and windows once, then per closed form the sums over its windows, sharing the
+    joints they agree on, where the general kernel sums over every pair of branches."""
     _, fixed, turned_value, window_ok, free = tables
     n, kc, dof = fixed.shape
+    windows = turned_value.shape[3]
     slot = np.full(dof, -1, dtype=np.int64)
     for t in range(len(turned)):
         slot[turned[t]] = t
-    term = np.empty((kc, kc, dof, turned_value.shape[3]))
+    leaf = np.zeros(len(closed), dtype=np.int64)  # each branch's windows as a leaf
+    for b in range(len(closed)):
+        for j in range(dof):
+            if slot[j] >= 0:
+                leaf[b] = leaf[b] * windows + turns[b, slot[j]]
+    term = np.empty((kc, kc, dof, windows))
+    sums = np.empty(windows ** len(turned))
+    least = np.empty((kc, len(sums)))
     leaving[:] = 1.0
     arriving[:] = 1.0
     for i in range(n - 1):
         _joint_terms(fixed[i], turned_value[i], window_ok[i], fixed[i + 1],
                      turned_value[i + 1], window_ok[i + 1], slot, weights, term)
+        _least_by_windows(term, free, i + 1, slot, windows, sums, least)
         for a in range(len(closed)):
             if valid[i, a]:
-                least = _least_over(term, closed, turns, a, free, i + 1, slot)
-                leaving[i, a] = min(least / scale, 1.0)
+                leaving[i, a] = min(least[closed[a], leaf[a]] / scale, 1.0)
         _joint_terms(fixed[i + 1], turned_value[i + 1], window_ok[i + 1], fixed[i],
                      turned_value[i], window_ok[i], slot, weights, term)
+        _least_by_windows(term, free, i, slot, windows, sums, least)
         for b in range(len(closed)):
             if valid[i + 1, b]:
-                least = _least_over(term, closed, turns, b, free, i, slot)
-                arriving[i + 1, b] = min(least / scale, 1.0)
+                arriving[i + 1, b] = min(least[closed[b], leaf[b]] / scale, 1.0)
 
 
 @njit
@@ -252,6 +273,15 @@ def _compact_templates(candidates: np.ndarray, valid: np.ndarray, endpoint: np.n
     out[:] = 0.0
     for i in range(n + 1):
         out[i, progress] = i / n
+    # Each waypoint's normalised candidates once, as stored; every slot showing it copies.
+    shown = np.empty((n, k * dof), dtype=out.dtype)
+    for w in range(n):
+        for b in range(k):
+            for j in range(dof):
+                value = 0.0
+                if valid[w, b]:
+                    value = (candidates[w, b, j] - centre[j]) / half_range[j]
+                shown[w, b * dof + j] = min(max(value, -1.0), 1.0)
     for h in range(len(slots)):
         present, travel_out, travel_in = slots[h]
         for i in range(n - h):
@@ -259,12 +289,7 @@ def _compact_templates(candidates: np.ndarray, valid: np.ndarray, endpoint: np.n
             row = out[i]
             row[present] = 1.0
             at = present + 1
-            for b in range(k):
-                for j in range(dof):
-                    value = 0.0
-                    if valid[w, b]:
-                        value = (candidates[w, b, j] - centre[j]) / half_range[j]
-                    row[at + b * dof + j] = min(max(value, -1.0), 1.0)
+            row[at : at + k * dof] = shown[w]
             at += k * dof
             for b in range(k):
                 row[at + b] = 1.0 if valid[w, b] else 0.0

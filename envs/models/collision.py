@@ -270,6 +270,7 @@ class CollisionChecker:
         self._normal_columns = (self._pairs[self._spheres:, :1] * 9
                                 + np.arange(2, 9, 3)).ravel()
         self._first_ids, self._second_ids = self._pairs[:, 0].tolist(), self._pairs[:, 1].tolist()
+        self._body_names: tuple[str, ...] | None = None  # by id, made when first asked
         self._filter: CompiledFilter | None = None
         if backend == "compiled":
             self._filter = CompiledFilter(self.model, self._data, self.dof, self._pairs)
@@ -379,6 +380,18 @@ class CollisionChecker:
                 )
             )
         return tuple(sorted(found, key=lambda c: c.distance))
+
+    def contact_bodies(self, q: ArrayLike) -> frozenset[str]:
+        """The names of the bodies in contact at one configuration ``q`` (dof,): the bodies
+        of :meth:`contacts`, read from MuJoCo's contact array at once."""
+        model, data = self.model, self._data
+        data.qpos[:] = self._full_qpos(np.asarray(q, dtype=np.float64)[None])[0]
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_collision(model, data)
+        if self._body_names is None:
+            self._body_names = tuple(model.body(b).name for b in range(model.nbody))
+        bodies = model.geom_bodyid[data.contact.geom[: data.ncon]].ravel().tolist()
+        return frozenset(self._body_names[b] for b in bodies)
 
     # ------------------------------------------------------------------------- paths
     def displacement_bound(self, q0: ArrayLike, q1: ArrayLike) -> np.ndarray:

@@ -343,7 +343,7 @@ def random_clutter(
         bodies.append(body)
     model = compile_spec(spec, collision_shapes=tree.collision_shapes)
     checker = CollisionChecker(model, dof=arm.dof, resolution=clearance)
-    touching = {name for c in checker.contacts(arm.home) for name in (c.body1, c.body2)}
+    touching = checker.contact_bodies(arm.home)
     for body in bodies:
         if body.name in touching:
             spec.delete(body)

@@ -309,8 +309,8 @@ def test_travel_summaries_are_the_priced_travel(env_id):
     np.testing.assert_array_equal(arriving, expected_in)
 
 
-@pytest.mark.parametrize("env_id", ["IKBranch/UR5e-v0", "IKBranch/KukaKR6-v0",
-                                    "IKBranch/IRB2600Screwing-v0"])
+@pytest.mark.parametrize("env_id", ["IKBranch/UR5e-v0", "IKBranch/UR5e-v4",
+                                    "IKBranch/KukaKR6-v0", "IKBranch/IRB2600Screwing-v0"])
 def test_factored_travel_summaries_are_the_general_ones(env_id):
     # An arm's turn branches factor its ladder (closed-form branch × turn windows): the
     # least travel taken over the factors is the least over every pair, bit for bit.

@@ -170,6 +170,23 @@ def test_self_and_floor_contacts_are_reported_but_not_adjacent_links():
     assert kinds == {"floor", "self"}
 
 
+def test_contact_bodies_are_the_bodies_of_the_contacts():
+    # The clutter drops the obstacles touching the arm at home by these names.
+    arm = make_arm("ur5e")
+    checker = CollisionChecker(build_model("ur5e", "random_clutter"), dof=arm.dof)
+    rng = np.random.default_rng(4)
+    q = rng.uniform(arm.joint_limits[:, 0], arm.joint_limits[:, 1], size=(300, arm.dof))
+    colliding = q[checker.collides(q)]
+    assert len(colliding) > 20
+    seen = set()
+    for row in colliding[:60]:
+        bodies = checker.contact_bodies(row)
+        assert bodies == {name for c in checker.contacts(row) for name in (c.body1, c.body2)}
+        seen |= bodies
+    assert any(name.startswith("clutter") for name in seen)
+    assert checker.contact_bodies(arm.home) == frozenset()
+
+
 def test_batch_matches_loop_and_is_deterministic():
     arm = make_arm("anthropomorphic")
     model = build_model("anthropomorphic", "milling_cell")
