@@ -136,18 +136,22 @@ def load(root: Path) -> dict[str, dict[str, Any]]:
 
 
 def _curves(root: Path, env_id: str, algo: str, seeds: list[int]) -> dict[str, Any] | None:
+    """The IQM learning curve over the seeds' evaluation logs, at the timesteps every log
+    has (matched by timestep: a log that lacks one, as a shorter run does, leaves it
+    out)."""
     rows = []
     for seed in seeds:
         path = root / "runs" / env_name(env_id) / algo / f"seed{seed}" / "evaluations.npz"
         if path.exists():
-            log = np.load(path)
-            rows.append((log["timesteps"], log["results"].mean(axis=1)))
+            with np.load(path) as log:
+                rows.append(dict(zip(log["timesteps"].tolist(),
+                                     log["results"].mean(axis=1).tolist(), strict=True)))
     if not rows:
         return None
-    length = min(len(t) for t, _ in rows)
-    steps, returns = rows[0][0][:length], np.array([r[:length] for _, r in rows])
-    estimates = [_estimate(returns[:, [i]], iqm_rows) for i in range(length)]
-    return {"timesteps": steps.tolist(), "iqm": [e[0] for e in estimates],
+    steps = sorted(set.intersection(*(set(row) for row in rows)))
+    returns = np.array([[row[step] for step in steps] for row in rows])
+    estimates = [_estimate(returns[:, [i]], iqm_rows) for i in range(len(steps))]
+    return {"timesteps": steps, "iqm": [e[0] for e in estimates],
             "low": [e[1] for e in estimates], "high": [e[2] for e in estimates]}
 
 

@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from sb3_contrib.common.maskable.callbacks import MaskableEvalCallback
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
@@ -62,15 +63,34 @@ class HeldOutEvalCallback(MaskableEvalCallback):
     ``best.json`` beside the best model.
     """
 
-    def __init__(self, *args: Any, eval_seed: int, **kwargs: Any) -> None:
+    def __init__(self, *args: Any, eval_seed: int, resume: bool = False, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self.eval_seed = eval_seed
+        self.resume = resume
 
     def _init_callback(self) -> None:
         super()._init_callback()
         record = self._record_path()
         if record is not None and record.exists():
             self.best_mean_reward = json.loads(record.read_text())["best_mean_reward"]
+        if self.resume:
+            self._keep_history()
+
+    def _keep_history(self) -> None:
+        """A resumed run's ``evaluations.npz`` goes on from the run's own: SB3 writes the
+        whole history it holds at every evaluation, and would otherwise hold only the
+        evaluations since the resume. Those after the checkpoint the run resumes from are
+        dropped (its evaluations come again)."""
+        path = None if self.log_path is None else Path(f"{self.log_path}.npz")
+        if path is None or not path.exists():
+            return
+        with np.load(path) as log:
+            kept = log["timesteps"] <= self.model.num_timesteps
+            self.evaluations_timesteps = log["timesteps"][kept].tolist()
+            self.evaluations_results = list(log["results"][kept])
+            self.evaluations_length = list(log["ep_lengths"][kept])
+            if "successes" in log:
+                self.evaluations_successes = list(log["successes"][kept])
 
     def _record_path(self) -> Path | None:
         return None if self.best_model_save_path is None else (

@@ -220,6 +220,7 @@ def train(run: RunConfig, argv: list[str] | None = None) -> BaseAlgorithm:
         evaluation = HeldOutEvalCallback(
             eval_env,
             eval_seed=run.seed + VALIDATION_OFFSET,
+            resume=run.resume,
             n_eval_episodes=params["n_eval_episodes"],
             eval_freq=per_env(params["eval_freq"]),
             best_model_save_path=str(run_dir / "best"),

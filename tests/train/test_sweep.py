@@ -306,6 +306,23 @@ def test_aggregation_recovers_known_iqm_intervals_and_improvement(tmp_path):
     assert learned["timesteps"] == [1000] and learned["train_minutes"] == 1.5
 
 
+def test_the_learning_curve_matches_the_seeds_evaluations_by_timestep(tmp_path):
+    # A log that lacks early evaluations (or ends sooner) leaves those timesteps out; it
+    # is never read as if its first evaluation were everyone's first.
+    logs = {0: ([10, 20, 30, 40], [[-9.0, -7.0], [-6.0, -6.0], [-5.0, -3.0], [-2.0, -2.0]]),
+            1: ([20, 30, 40], [[-8.0, -8.0], [-4.0, -4.0], [-1.0, -3.0]]),
+            2: ([10, 20, 30], [[-9.0, -9.0], [-5.0, -7.0], [-3.0, -3.0]])}
+    for seed, (timesteps, results) in logs.items():
+        run = tmp_path / "runs" / "Env-v0" / "ppo" / f"seed{seed}"
+        run.mkdir(parents=True)
+        np.savez(run / "evaluations.npz", timesteps=timesteps, results=results,
+                 ep_lengths=np.ones_like(results))
+    curve = aggregate._curves(tmp_path, "IKBranch/Env-v0", "ppo", [0, 1, 2])
+    assert curve["timesteps"] == [20, 30]
+    assert curve["iqm"] == [pytest.approx(iqm(np.array([-6.0, -8.0, -6.0]))),
+                            pytest.approx(iqm(np.array([-4.0, -4.0, -3.0])))]
+
+
 def test_the_iqm_gap_and_the_mean_gap_are_the_projects_two_gaps(tmp_path):
     # IQM gap: the IQM over runs × tasks of (R_oracle,i − R_i)/|R_oracle,i|; mean gap:
     # (mean R_oracle − mean R)/|mean R_oracle|; both computed independently here.

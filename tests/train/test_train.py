@@ -91,6 +91,9 @@ def test_training_run_writes_a_complete_run_directory_and_resumes(tmp_path):
     assert "stable-baselines3" in yaml.safe_load((run_dir / "versions.yml").read_text())
     first_steps = MaskablePPO.load(run_dir / "model.zip").num_timesteps
     assert first_steps >= 1000
+    with np.load(run_dir / "evaluations.npz") as log:
+        first_log = {key: log[key] for key in log}
+    assert first_log["timesteps"].tolist() == [400, 800]
 
     # A second start without --resume refuses to overwrite the run.
     refused = run_cli(*common, "--timesteps", "1000")
@@ -101,6 +104,13 @@ def test_training_run_writes_a_complete_run_directory_and_resumes(tmp_path):
     model = MaskablePPO.load(run_dir / "model.zip")
     assert model.num_timesteps >= 1600 > first_steps
     assert len((run_dir / "command.txt").read_text().splitlines()) == 2
+    # The learning curve goes on from the first part's evaluations, which stay as they were.
+    with np.load(run_dir / "evaluations.npz") as log:
+        timesteps = log["timesteps"]
+        assert timesteps[:2].tolist() == [400, 800] and len(timesteps) > 2
+        assert (np.diff(timesteps) > 0).all() and timesteps[2] > first_steps
+        for key, values in first_log.items():
+            np.testing.assert_array_equal(log[key][:2], values)
 
     import gymnasium as gym
 
