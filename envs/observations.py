@@ -108,8 +108,7 @@ def _turn_tables(candidates: np.ndarray, valid: np.ndarray, endpoint: np.ndarray
     exists = np.zeros((n, n_closed), dtype=np.bool_)
     free = np.zeros((n, n_closed), dtype=np.bool_)
     is_turned = np.zeros(dof, dtype=np.bool_)
-    for t in range(jt):
-        is_turned[turned[t]] = True
+    is_turned[turned] = True
     factored = True
     for i in range(n):
         for b in range(k):
@@ -135,12 +134,23 @@ def _turn_tables(candidates: np.ndarray, valid: np.ndarray, endpoint: np.ndarray
                 if window_ok[i, c, t, w] and turned_value[i, c, t, w] != value:
                     factored = False
                 turned_value[i, c, t, w], window_ok[i, c, t, w] = value, True
-        for b in range(k):  # validity is the product of the windows'
-            product = exists[i, closed[b]]
-            for t in range(jt):
-                product = product and window_ok[i, closed[b], t, turns[b, t]]
-            factored = factored and product == valid[i, b]
+        factored = factored and _validity_is_product(valid[i], exists[i], window_ok[i],
+                                                     closed, turns)
     return factored, fixed, turned_value, window_ok, free
+
+
+@njit
+def _validity_is_product(valid: np.ndarray, exists: np.ndarray, window_ok: np.ndarray,
+                         closed: np.ndarray, turns: np.ndarray) -> bool:
+    """A waypoint's branches are valid exactly where their closed form exists and each of
+    their turned joints' windows does (one waypoint of :func:`_turn_tables`)."""
+    for b in range(len(valid)):
+        product = exists[closed[b]]
+        for t in range(turns.shape[1]):
+            product = product and window_ok[closed[b], t, turns[b, t]]
+        if product != valid[b]:
+            return False
+    return True
 
 
 @njit
