@@ -60,6 +60,8 @@ from ikbranch_gym.envs.process import UNKNOWN, move_blocked
 #: The flags the filter's kernels take, as run-time booleans: every caller then shares one
 #: compiled version of them (a literal ``False`` would be typed, and compiled, apart).
 _FLAGS = np.array([False, True])
+#: A search round of at most half this many branches asks two targets of each.
+SPECULATE = 16
 #: Slots of the path memo (a power of two); it starts afresh when half are taken.
 MEMO_SLOTS = 2**16
 #: Slots of the turn-copy memo (a power of two); it starts afresh when half are taken.
@@ -894,10 +896,10 @@ def _costed_moves(ep, rows, waypoints, pending, costs):
 def _search(ep, bound, rows, here, there, travel, pending):
     """(M, K): per line m (row ``rows[m]``) and branch a where ``pending[m, a]``, the
     least ``travel[m, a, b]`` over the b whose path ``here[m, a]`` → ``there[m, b]`` is
-    free: cheapest first, one kernel call per round for every line; +inf where there is
-    none. ``pending`` is consumed."""
+    free: cheapest first, one kernel call per round for every line (a small round asks
+    each branch's next target too: :func:`_targets_ahead`); +inf where there is none.
+    ``pending`` is consumed."""
     count, k = pending.shape
-    dof = here.shape[2]
     last = np.full((count, k), -1, dtype=np.int64)
     out = np.full((count, k), np.inf)
     while True:
@@ -916,15 +918,70 @@ def _search(ep, bound, rows, here, there, travel, pending):
         if not asked:
             break
         lines, branches, columns = lines[:asked], branches[:asked], columns[:asked]
-        owners = np.empty(asked, dtype=np.int64)
-        starts, ends = np.empty((asked, dof)), np.empty((asked, dof))
+        ahead = _targets_ahead(lines, branches, columns, travel, last)
+        owners, starts, ends = _round_paths(rows, lines, branches, columns, ahead, here, there)
+        hits = _paths_collide(ep, bound, owners, starts, ends)
+        _take_or_try_next(lines, branches, columns, hits[:asked], travel, last, out, pending)
+        _take_ahead(lines, branches, ahead, hits[asked:], travel, last, out, pending)
+    return out
+
+
+@njit(inline="always")
+def _targets_ahead(lines, branches, columns, travel, last):
+    """Per asking branch of a round of :func:`_search` of at most ``SPECULATE`` / 2, its
+    target after ``columns[i]`` in the same order (−1: none, and for every branch of a
+    larger round): where the first collides, the next round's check is made already.
+    The answers stay those of one target a round; the calls are fuller and fewer."""
+    asked = len(lines)
+    ahead = np.full(asked, -1, dtype=np.int64)
+    if 2 * asked <= SPECULATE:
         for i in range(asked):
             m, a = lines[i], branches[i]
-            owners[i] = rows[m]
-            starts[i], ends[i] = here[m, a], there[m, columns[i]]
-        hits = _paths_collide(ep, bound, owners, starts, ends)
-        _take_or_try_next(lines, branches, columns, hits, travel, last, out, pending)
-    return out
+            after = last[m, a]
+            last[m, a] = columns[i]
+            _next_targets(lines[i : i + 1], branches[i : i + 1], travel, last, ahead[i : i + 1])
+            last[m, a] = after
+    return ahead
+
+
+@njit(inline="always")
+def _round_paths(rows, lines, branches, columns, ahead, here, there):
+    """The paths of a round of :func:`_search`: each asking branch's target, then the
+    targets ahead (:func:`_targets_ahead`) in the same order; their rows, starts, ends."""
+    asked, dof = len(lines), here.shape[2]
+    total = asked
+    for i in range(asked):
+        total += ahead[i] >= 0
+    owners = np.empty(total, dtype=np.int64)
+    starts, ends = np.empty((total, dof)), np.empty((total, dof))
+    at = asked
+    for i in range(asked):
+        m, a = lines[i], branches[i]
+        owners[i] = rows[m]
+        starts[i], ends[i] = here[m, a], there[m, columns[i]]
+        if ahead[i] >= 0:
+            owners[at] = rows[m]
+            starts[at], ends[at] = here[m, a], there[m, ahead[i]]
+            at += 1
+    return owners, starts, ends
+
+
+@njit(inline="always")
+def _take_ahead(lines, branches, ahead, hits, travel, last, out, pending):
+    """The targets ahead of a round (``hits``: theirs, in order) decide the branches whose
+    first target collided, as the next round would have."""
+    at = 0
+    for i in range(len(lines)):
+        if ahead[i] < 0:
+            continue
+        m, a = lines[i], branches[i]
+        if pending[m, a]:
+            if not hits[at]:
+                out[m, a] = travel[m, a, ahead[i]]
+                pending[m, a] = False
+            else:
+                last[m, a] = ahead[i]
+        at += 1
 
 
 @njit
