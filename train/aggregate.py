@@ -138,7 +138,7 @@ def load(root: Path) -> dict[str, dict[str, Any]]:
 def _curves(root: Path, env_id: str, algo: str, seeds: list[int]) -> dict[str, Any] | None:
     """The IQM learning curve over the seeds' evaluation logs, at the timesteps every log
     has (matched by timestep: a log that lacks one, as a shorter run does, leaves it
-    out)."""
+    out); None where there is no log or no timestep all of them share."""
     rows = []
     for seed in seeds:
         path = root / "runs" / env_name(env_id) / algo / f"seed{seed}" / "evaluations.npz"
@@ -149,6 +149,8 @@ def _curves(root: Path, env_id: str, algo: str, seeds: list[int]) -> dict[str, A
     if not rows:
         return None
     steps = sorted(set.intersection(*(set(row) for row in rows)))
+    if not steps:
+        return None
     returns = np.array([[row[step] for step in steps] for row in rows])
     estimates = [_estimate(returns[:, [i]], iqm_rows) for i in range(len(steps))]
     return {"timesteps": steps, "iqm": [e[0] for e in estimates],

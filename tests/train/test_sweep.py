@@ -321,6 +321,12 @@ def test_the_learning_curve_matches_the_seeds_evaluations_by_timestep(tmp_path):
     assert curve["timesteps"] == [20, 30]
     assert curve["iqm"] == [pytest.approx(iqm(np.array([-6.0, -8.0, -6.0]))),
                             pytest.approx(iqm(np.array([-4.0, -4.0, -3.0])))]
+    # Logs that share no timestep (seeds evaluated at other steps) make no curve.
+    run = tmp_path / "runs" / "Env-v0" / "ppo" / "seed3"
+    run.mkdir(parents=True)
+    np.savez(run / "evaluations.npz", timesteps=[15, 25], results=[[-1.0], [-1.0]],
+             ep_lengths=[[1], [1]])
+    assert aggregate._curves(tmp_path, "IKBranch/Env-v0", "ppo", [0, 1, 2, 3]) is None
 
 
 def test_the_iqm_gap_and_the_mean_gap_are_the_projects_two_gaps(tmp_path):
