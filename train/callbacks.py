@@ -75,6 +75,9 @@ class HeldOutEvalCallback(MaskableEvalCallback):
             self.best_mean_reward = json.loads(record.read_text())["best_mean_reward"]
         if self.resume:
             self._keep_history()
+            # Evaluate on the uninterrupted run's grid of steps: SB3 counts calls from
+            # the resume, which would shift every later evaluation off the other seeds'.
+            self.n_calls = self.model.num_timesteps // self.model.n_envs
 
     def _keep_history(self) -> None:
         """A resumed run's ``evaluations.npz`` goes on from the run's own: SB3 writes the

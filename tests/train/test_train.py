@@ -109,6 +109,8 @@ def test_training_run_writes_a_complete_run_directory_and_resumes(tmp_path):
         timesteps = log["timesteps"]
         assert timesteps[:2].tolist() == [400, 800] and len(timesteps) > 2
         assert (np.diff(timesteps) > 0).all() and timesteps[2] > first_steps
+        # ... and on the same grid of steps as a run that never stopped.
+        assert (timesteps % 400 == 0).all()
         for key, values in first_log.items():
             np.testing.assert_array_equal(log[key][:2], values)
 
