@@ -363,10 +363,7 @@ class CollisionChecker:
 
     def contacts(self, q: ArrayLike) -> tuple[Contact, ...]:
         """The contacts of one configuration ``q`` (dof,), closest first."""
-        model, data = self.model, self._data
-        data.qpos[:] = self._full_qpos(np.asarray(q, dtype=np.float64)[None])[0]
-        mujoco.mj_kinematics(model, data)
-        mujoco.mj_collision(model, data)
+        model, data = self.model, self._collide_one(q)
         found = []
         for c in data.contact[: data.ncon]:
             g1, g2 = int(c.geom1), int(c.geom2)
@@ -384,14 +381,19 @@ class CollisionChecker:
     def contact_bodies(self, q: ArrayLike) -> frozenset[str]:
         """The names of the bodies in contact at one configuration ``q`` (dof,): the bodies
         of :meth:`contacts`, read from MuJoCo's contact array at once."""
-        model, data = self.model, self._data
-        data.qpos[:] = self._full_qpos(np.asarray(q, dtype=np.float64)[None])[0]
-        mujoco.mj_kinematics(model, data)
-        mujoco.mj_collision(model, data)
+        model, data = self.model, self._collide_one(q)
         if self._body_names is None:
             self._body_names = tuple(model.body(b).name for b in range(model.nbody))
         bodies = model.geom_bodyid[data.contact.geom[: data.ncon]].ravel().tolist()
         return frozenset(self._body_names[b] for b in bodies)
+
+    def _collide_one(self, q: ArrayLike) -> mujoco.MjData:
+        """The checker's data with MuJoCo's contacts of one configuration ``q`` (dof,)."""
+        data = self._data
+        data.qpos[:] = self._full_qpos(np.asarray(q, dtype=np.float64)[None])[0]
+        mujoco.mj_kinematics(self.model, data)
+        mujoco.mj_collision(self.model, data)
+        return data
 
     # ------------------------------------------------------------------------- paths
     def displacement_bound(self, q0: ArrayLike, q1: ArrayLike) -> np.ndarray:
