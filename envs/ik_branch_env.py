@@ -690,17 +690,17 @@ class IKBranchEnv(gym.Env):
     @property
     def candidates(self) -> np.ndarray | None:
         """(N, K, dof) IK candidates of the task's waypoints (NaN rows where invalid)."""
-        return None if self.ladder is None else self.ladder.candidates
+        return None if self.ladder is None else _read_only(self.ladder.candidates)
 
     @property
     def valid(self) -> np.ndarray | None:
         """(N, K) bool: the branch exists and lies inside the joint limits."""
-        return None if self.ladder is None else self.ladder.valid
+        return None if self.ladder is None else _read_only(self.ladder.valid)
 
     @property
     def endpoint_collision(self) -> np.ndarray | None:
         """(N, K) bool: the candidate configuration itself touches something."""
-        return None if self.ladder is None else self.ladder.endpoint_collision
+        return None if self.ladder is None else _read_only(self.ladder.endpoint_collision)
 
     # ---------------------------------------------------------------------------- API
     def reset(self, *, seed: int | None = None,
@@ -876,3 +876,11 @@ class IKBranchEnv(gym.Env):
         episode.collided[0], episode.invalid[0] = state["flags"]
         if state["task"] is not None:
             episode.survey(self._row)
+
+
+def _read_only(array: np.ndarray) -> np.ndarray:
+    """A read-only view of ``array``: a ladder's arrays are shared by every ladder of the
+    same task (``MovePricer.task``), so what the env hands out must not write to them."""
+    view = array.view()
+    view.flags.writeable = False
+    return view

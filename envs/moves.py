@@ -12,6 +12,8 @@ never losing the call's own results):
 cache                bound         key → value
 ==================== ============ ========================================================
 poses                50,000        waypoint pose → IK candidates, validity, endpoint hits
+ladders              32 MB         a task's poses and segments → its ladder's candidates,
+                                   validity, endpoint hits and continuity
 configurations       200,000       configuration → collides (the generators' predicate)
 paths                200,000       (q0, q1) → the linear path collides
 templates            64 MB         a task's candidates, validity and endpoint hits → the
@@ -54,6 +56,8 @@ PATH_CACHE_SIZE = 200_000
 #: observations a task), and of the tasks it remembers having seen once.
 TEMPLATE_CACHE_BYTES = 64 * 2**20
 TEMPLATE_SIGHTINGS = 100_000
+#: Bound of the ladder cache, in bytes (a task's arrays and their fingerprint).
+LADDER_CACHE_BYTES = 32 * 2**20
 
 #: The reward terms of a move, in the order they are summed (``info`` reports each).
 REWARD_TERMS = ("reward_travel", "reward_time", "reward_collision", "reward_invalid",
@@ -73,6 +77,23 @@ class _Cache:
 
     def __len__(self) -> int:
         return len(self.entries)
+
+
+@dataclass(frozen=True)
+class _Ladder:
+    """What a task's ladder holds beyond the task: read-only arrays, its continuity (None
+    without) and its fingerprint (the arrays' bytes: what the observation templates are
+    keyed by)."""
+
+    candidates: np.ndarray
+    valid: np.ndarray
+    endpoint: np.ndarray
+    continuity: Continuity | None
+    fingerprint: tuple[bytes, bytes, bytes]
+
+    @property
+    def nbytes(self) -> int:
+        return 2 * (self.candidates.nbytes + self.valid.nbytes + self.endpoint.nbytes)
 
 
 class MovePricer:
@@ -123,11 +144,21 @@ class MovePricer:
         self.poses = _Cache(POSE_CACHE_SIZE)
         self.configurations = _Cache(CONFIGURATION_CACHE_SIZE)
         self.paths = _Cache(PATH_CACHE_SIZE)
+        #: (poses, segments) bytes of a task → its ladder's arrays (candidates,
+        #: valid, endpoint_collision), continuity and fingerprint; cleared when it would
+        #: grow past ``LADDER_CACHE_BYTES``.
+        self.ladders: dict[tuple[bytes, bytes | None], _Ladder] = {}
+        self._ladder_bytes = 0
+        self.branch_configuration = np.ascontiguousarray(arm.branch_closed_form,
+                                                         dtype=np.int64)
+        self.revolute = arm.revolute_mask
 
     def clear_caches(self) -> None:
         """Forget every cached verdict (the scene changed: ``scene_seed=None``)."""
         for cache in (self.poses, self.configurations, self.paths):
             cache.entries.clear()
+        self.ladders.clear()
+        self._ladder_bytes = 0
 
     # ------------------------------------------------------------------ candidates
     def solve(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -170,7 +201,27 @@ class MovePricer:
     def task(self, task: Task) -> TaskMoves:
         """The ladder of ``task``: its candidates solved, ready to price moves. With process
         continuity, branches from which their segment cannot be followed are invalid
-        (their rows NaN); ``ValueError`` for a segment no branch sequence follows."""
+        (their rows NaN); ``ValueError`` for a segment no branch sequence follows. A task
+        whose poses and segments were met before (a finite pose set) takes the arrays of
+        that ladder, which are the arrays solving it again would give."""
+        key = (np.asarray(task.poses, dtype=np.float64).tobytes(),
+               None if task.segments is None else
+               np.asarray(task.segments, dtype=np.int64).tobytes())
+        known = self.ladders.get(key)
+        if known is None:
+            known = self._ladder(task)
+            if self._ladder_bytes + known.nbytes > LADDER_CACHE_BYTES:
+                self.ladders.clear()
+                self._ladder_bytes = 0
+            self.ladders[key] = known
+            self._ladder_bytes += known.nbytes
+        return TaskMoves(self, task, known.candidates, known.valid, known.endpoint,
+                         known.continuity, known.fingerprint)
+
+    def _ladder(self, task: Task) -> _Ladder:
+        """The arrays of :meth:`task`'s ladder, solved. They are shared by the ladders of
+        every task with these poses, and nothing writes to them (the kernels take them
+        writable: numba would compile a read-only array's version apart)."""
         candidates, valid, endpoint = self.solve(task.poses)
         if not valid.any(axis=-1).all():
             raise RuntimeError("task generator produced a waypoint without a valid branch")
@@ -178,15 +229,16 @@ class MovePricer:
             clear = self._clear_of_singularities(candidates, valid)
             candidates = np.where(clear[..., None], candidates, np.nan)
             valid, endpoint = clear, endpoint & clear
-        if self.max_joint_step is None:
-            return TaskMoves(self, task, candidates, valid, endpoint)
-        arm = self.arm
-        segments = (np.zeros(task.n_waypoints, dtype=np.int64) if task.segments is None
-                    else task.segments)
-        kept, followable = continuity(candidates, valid, segments, arm.branch_closed_form,
-                                      arm.revolute_mask, self.max_joint_step)
-        candidates = np.where(followable[..., None], candidates, np.nan)
-        return TaskMoves(self, task, candidates, followable, endpoint & followable, kept)
+        kept = None
+        if self.max_joint_step is not None:
+            segments = (np.zeros(task.n_waypoints, dtype=np.int64) if task.segments is None
+                        else task.segments)
+            kept, valid = continuity(candidates, valid, segments, self.branch_configuration,
+                                     self.revolute, self.max_joint_step)
+            candidates = np.where(valid[..., None], candidates, np.nan)
+            endpoint = endpoint & valid
+        return _Ladder(candidates, valid, endpoint, kept,
+                       (candidates.tobytes(), valid.tobytes(), endpoint.tobytes()))
 
     def _clear_of_singularities(self, candidates: np.ndarray, valid: np.ndarray) -> np.ndarray:
         """(N, K): valid branches outside the singularity margins; ``ValueError`` naming
@@ -564,7 +616,8 @@ class TaskMoves:
 
     def __init__(self, pricer: MovePricer, task: Task, candidates: np.ndarray,
                  valid: np.ndarray, endpoint_collision: np.ndarray,
-                 continuity: Continuity | None = None) -> None:
+                 continuity: Continuity | None = None,
+                 fingerprint: tuple[bytes, bytes, bytes] | None = None) -> None:
         self.pricer, self.task = pricer, task
         self.candidates, self.valid = candidates, valid
         self.endpoint_collision = endpoint_collision
@@ -576,9 +629,17 @@ class TaskMoves:
         self.inside = (np.zeros(self.n_waypoints, dtype=bool) if continuity is None
                        else continuity.inside)
         self.limit = np.inf if continuity is None else continuity.limit
-        arm = pricer.arm
-        self.configuration = np.ascontiguousarray(arm.branch_closed_form, dtype=np.int64)
-        self.revolute = arm.revolute_mask
+        self.configuration, self.revolute = pricer.branch_configuration, pricer.revolute
+        self._fingerprint = fingerprint
+
+    @property
+    def fingerprint(self) -> tuple[bytes, bytes, bytes]:
+        """The bytes of ``candidates``, ``valid`` and ``endpoint_collision``: equal for
+        ladders whose observation templates are equal (their cache's key)."""
+        if self._fingerprint is None:
+            self._fingerprint = (self.candidates.tobytes(), self.valid.tobytes(),
+                                 self.endpoint_collision.tobytes())
+        return self._fingerprint
 
     def origins(self, waypoint: int) -> tuple[np.ndarray, np.ndarray]:
         """Where the arm can stand before ``waypoint``: rows (R, dof) and which exist."""

@@ -388,8 +388,7 @@ class ObservationBuilder:
         (``envs.stepping``). They depend on the task's candidates, their
         validity and endpoint hits only, so a task met again (a finite pose set) takes
         them from the cache."""
-        key = (ladder.candidates.tobytes(), ladder.valid.tobytes(),
-               ladder.endpoint_collision.tobytes())
+        key = ladder.fingerprint
         templates = self._cache.get(key)
         if templates is None:
             templates = self._assemble(ladder)

@@ -306,9 +306,16 @@ class IKBranchVectorEnv(VectorEnv):
         n = self.num_envs
         begun = begin_episodes([self.envs[row] for row in rows.tolist()], seeds, self._stack,
                                rows, options)
+        # Each key's rows and values (keys in the order the rows first name them), then
+        # one _put a key.
+        columns: dict[str, tuple[list[int], list[Any]]] = {}
         for row, info in zip(rows.tolist(), begun, strict=True):
             for key, value in info.items():
-                _put(infos, key, np.array([row]), np.array([value]), n=n)
+                named, values = columns.setdefault(key, ([], []))
+                named.append(row)
+                values.append(value)
+        for key, (named, values) in columns.items():
+            _put(infos, key, np.array(named), np.array(values), n=n)
         return infos
 
 
@@ -373,8 +380,12 @@ def _step_infos(n: int, rows: np.ndarray, steps: Steps,
     columns = {"waypoint": steps.waypoint, "branch": steps.branch, "travel": steps.travel,
                "time": steps.time, **steps.terms, "collision": steps.collision,
                "invalid": steps.invalid}
-    for key, value in columns.items():
-        _put(infos, key, picked, value[pick], n=n)
+    present = _mask(n, picked)
+    for key, value in columns.items():  # _put's arrays, the rows' mask made once
+        values = value[pick]
+        infos[key] = np.zeros((n, *values.shape[1:]), dtype=values.dtype)
+        infos[key][picked] = values
+        infos["_" + key] = present.copy()
     ended = steps.terminated[pick]
     if ended.any():
         _put(infos, "is_success", picked[ended], steps.success[pick][ended], n=n)

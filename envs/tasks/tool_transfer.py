@@ -39,6 +39,17 @@ def _cell_poses() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 @cache
+def _tool_cycles() -> np.ndarray:
+    """Each tool's four poses (grips, S, 4, 4, 4): above its slot, in it, above it again,
+    in the spindle; read-only."""
+    slots, above, spindle = _cell_poses()
+    cycles = np.stack([above, slots, above, np.broadcast_to(spindle[:, None], above.shape)],
+                      axis=2)
+    cycles.flags.writeable = False
+    return cycles
+
+
+@cache
 def _parked_configurations(arm: Arm) -> np.ndarray:
     """Home and every valid front-shoulder branch above a slot or in the spindle, either
     grip: where earlier jobs leave the arm."""
@@ -143,17 +154,16 @@ def tool_changes(
     its position 1. The pose set is finite, so the env's path-collision cache covers every
     move after warm-up.
     """
-    slots, above, spindle = _cell_poses()
     tools = -(-n_waypoints // 4)
     usable = _usable_grips(arm, is_free)
-    grips = usable[rng.integers(len(usable), size=tools)]
-    chosen = rng.integers(slots.shape[1], size=tools)
-    cycle = np.stack(
-        [above[grips, chosen], slots[grips, chosen], above[grips, chosen], spindle[grips]],
-        axis=1,
-    )
+    cycles = _tool_cycles()
+    # One scalar draw at a time is the stream of one draw of ``size=tools`` (NumPy fills
+    # an array of bounded integers element by element), and a quarter of the time.
+    grips = [usable[rng.integers(len(usable))] for _ in range(tools)]
+    chosen = [rng.integers(cycles.shape[1]) for _ in range(tools)]
     parked = _free_parked_configurations(arm, is_free)
     return Task(
         start=parked[rng.integers(len(parked))].copy(),
-        poses=cycle.reshape(-1, 4, 4)[:n_waypoints],
+        poses=np.concatenate([cycles[g, c] for g, c in zip(grips, chosen, strict=True)])[
+            :n_waypoints],
     )

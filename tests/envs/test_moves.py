@@ -124,6 +124,43 @@ def test_caches_answer_as_the_checker_and_keep_their_bounds():
         pricer.is_free(np.full((1, arm.dof), np.inf))
 
 
+def test_a_task_met_again_takes_its_ladder_from_the_cache():
+    """Tool changes repeat their poses: the second ladder of a pose sequence holds the
+    first's arrays, equal to what a pricer that never met it solves; a new scene (or a
+    full cache) forgets them; the env hands them out read-only."""
+    env = make("IKBranch/ToolTransfer-v2").unwrapped
+    fresh = make("IKBranch/ToolTransfer-v2").unwrapped
+    fresh.reset(seed=0)
+    met: dict[bytes, TaskMoves] = {}
+    repeated = 0
+    for seed in range(40):
+        env.reset(seed=seed)
+        ladder = env.ladder
+        key = ladder.task.poses.tobytes()
+        if key in met:
+            repeated += 1
+            assert ladder.candidates is met[key].candidates
+            assert ladder.fingerprint is met[key].fingerprint
+        met[key] = ladder
+        fresh.pricer.clear_caches()
+        solved = fresh.pricer.task(ladder.task)
+        np.testing.assert_array_equal(ladder.candidates, solved.candidates)
+        np.testing.assert_array_equal(ladder.valid, solved.valid)
+        np.testing.assert_array_equal(ladder.endpoint_collision, solved.endpoint_collision)
+        assert ladder.fingerprint == (solved.candidates.tobytes(), solved.valid.tobytes(),
+                                      solved.endpoint_collision.tobytes())
+    assert repeated > 10
+    pricer = env.pricer
+    assert pricer.ladders
+    with pytest.raises(ValueError, match="read-only"):
+        env.candidates[0, 0, 0] = 0.0
+    pricer.clear_caches()
+    assert not pricer.ladders
+    again = pricer.task(env.task)
+    assert again.candidates is not env.ladder.candidates
+    np.testing.assert_array_equal(again.candidates, env.ladder.candidates)
+
+
 def test_waypoints_outside_the_task_are_refused():
     ladder = _ladder("IKBranch/Cartesian-v1")
     with pytest.raises(ValueError, match="waypoint"):

@@ -96,6 +96,23 @@ def _reconfigurations(arm, qs: np.ndarray, branches: list[int], limit: float) ->
 
 
 # ------------------------------------------------------------------------ the functions
+
+def test_a_file_task_met_again_keeps_its_continuity(spin_file):
+    """The ladder of a task met again (every reset of a file task) has the continuity and
+    followable branches solved the first time, equal to a new env's."""
+    env = _env(spin_file, max_joint_step="auto", task_segments=[UNWIND])
+    env.reset(seed=0)
+    first = env.ladder
+    env.reset(seed=1)
+    assert env.ladder.continuity is first.continuity
+    assert env.ladder.valid is first.valid
+    other = _env(spin_file, max_joint_step="auto", task_segments=[UNWIND])
+    other.reset(seed=0)
+    np.testing.assert_array_equal(other.ladder.valid, first.valid)
+    np.testing.assert_array_equal(other.ladder.candidates, first.candidates)
+    np.testing.assert_array_equal(other.ladder.inside, first.inside)
+    assert other.ladder.limit == first.limit
+
 def test_segments_and_moves_inside_them():
     np.testing.assert_array_equal(segment_index(6, [0, 2, 5]), [0, 0, 1, 1, 1, 2])
     np.testing.assert_array_equal(segment_index(3, []), [0, 0, 0])

@@ -75,6 +75,38 @@ def test_tool_changes_cycle_above_slot_slot_above_slot_spindle():
     np.testing.assert_array_equal(short.poses, task.poses[:3])
 
 
+@pytest.mark.parametrize("n_waypoints", [3, 8, 9])
+def test_tool_changes_draw_as_arrays_of_draws(n_waypoints):
+    """The slots, grips and start are the draws of ``integers(…, size=tools)`` as NumPy
+    makes them, then one for the start: a task, and the generator's state after it, as
+    drawn in arrays (the published runs' tasks)."""
+    slots, spindle = rack_slot_poses(), example_poses()[1]
+    grips = (np.eye(3), np.diag([-1.0, 1.0, -1.0]))
+    parked = _parked_configurations(ARM)
+    tools = -(-n_waypoints // 4)
+    for seed in range(40):
+        task = TASKS["tool_changes"](ARM, np.random.default_rng(seed), n_waypoints,
+                                     _everything_free, all_paths_free)
+        rng = np.random.default_rng(seed)
+        grip = rng.integers(2, size=tools)
+        slot = rng.integers(len(slots), size=tools)
+        start = parked[rng.integers(len(parked))]
+        poses = []
+        for g, k in zip(grip, slot, strict=True):
+            held = slots[k].copy()
+            held[:3, :3] = slots[k][:3, :3] @ grips[g]
+            above = held.copy()
+            above[2, 3] += RACK_CLEARANCE
+            into = spindle.copy()
+            into[:3, :3] = spindle[:3, :3] @ grips[g]
+            poses += [above, held, above, into]
+        np.testing.assert_array_equal(task.start, start)
+        np.testing.assert_array_equal(task.poses, np.array(poses)[:n_waypoints])
+        after = np.random.default_rng(seed)
+        TASKS["tool_changes"](ARM, after, n_waypoints, _everything_free, all_paths_free)
+        assert after.random() == rng.random()
+
+
 def test_tool_changes_start_collision_free():
     parked = _parked_configurations(ARM)
 
