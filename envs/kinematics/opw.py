@@ -45,7 +45,6 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .arm import REVOLUTE, Arm, array_default
-from .rotations import homogeneous
 from .wrist import wrist_branches
 
 #: |cos β| up to 1 + this is reachable (stretched / folded elbow: both branches coincide).
@@ -208,31 +207,45 @@ class OpwArm(Arm):
 
     def _fk(self, q: np.ndarray) -> np.ndarray:
         t = self.angles_from_joints(q)
-        t1, t2, t3, t4, t5, t6 = (t[..., j] for j in range(6))
+        # Every sine and cosine in one call each, the matrices written in place: the
+        # values of opw_kinematics' forward(), term for term, with half the numpy calls.
+        s, c = np.sin(t), np.cos(t)
+        s1, s2, s3, s4, s5, s6 = (s[..., j] for j in range(6))
+        c1, c2, c3, c4, c5, c6 = (c[..., j] for j in range(6))
+        t2, t3 = t[..., 1], t[..., 2]
         psi3 = math.atan2(self.a2, self.c3)
         k = math.sqrt(self.a2 * self.a2 + self.c3 * self.c3)
-        # opw_kinematics' forward(), term for term.
-        cx1 = self.c2 * np.sin(t2) + k * np.sin(t2 + t3 + psi3) + self.a1
+        cx1 = self.c2 * s2 + k * np.sin(t2 + t3 + psi3) + self.a1
         cy1 = self.b
-        cz1 = self.c2 * np.cos(t2) + k * np.cos(t2 + t3 + psi3)
-        s1, c1 = np.sin(t1), np.cos(t1)
-        s2, c2, s3, c3 = np.sin(t2), np.cos(t2), np.sin(t3), np.cos(t3)
-        s4, c4, s5, c5 = np.sin(t4), np.cos(t4), np.sin(t5), np.cos(t5)
-        s6, c6 = np.sin(t6), np.cos(t6)
-        zero = np.zeros_like(t1)
-        r_0c = np.stack([
-            np.stack([c1 * c2 * c3 - c1 * s2 * s3, -s1, c1 * c2 * s3 + c1 * s2 * c3], -1),
-            np.stack([s1 * c2 * c3 - s1 * s2 * s3, c1, s1 * c2 * s3 + s1 * s2 * c3], -1),
-            np.stack([-s2 * c3 - c2 * s3, zero, -s2 * s3 + c2 * c3], -1),
-        ], -2)
-        r_ce = np.stack([
-            np.stack([c4 * c5 * c6 - s4 * s6, -c4 * c5 * s6 - s4 * c6, c4 * s5], -1),
-            np.stack([s4 * c5 * c6 + c4 * s6, -s4 * c5 * s6 + c4 * c6, s4 * s5], -1),
-            np.stack([-s5 * c6, s5 * s6, c5], -1),
-        ], -2)
-        rotation = r_0c @ r_ce
-        centre = np.stack([cx1 * c1 - cy1 * s1, cx1 * s1 + cy1 * c1, cz1 + self.c1], -1)
-        return homogeneous(rotation, centre + self.c4 * rotation[..., :, 2])
+        cz1 = self.c2 * c2 + k * np.cos(t2 + t3 + psi3)
+        shape = t.shape[:-1]
+        r_0c, r_ce = np.empty((*shape, 3, 3)), np.empty((*shape, 3, 3))
+        r_0c[..., 0, 0] = c1 * c2 * c3 - c1 * s2 * s3
+        r_0c[..., 0, 1] = -s1
+        r_0c[..., 0, 2] = c1 * c2 * s3 + c1 * s2 * c3
+        r_0c[..., 1, 0] = s1 * c2 * c3 - s1 * s2 * s3
+        r_0c[..., 1, 1] = c1
+        r_0c[..., 1, 2] = s1 * c2 * s3 + s1 * s2 * c3
+        r_0c[..., 2, 0] = -s2 * c3 - c2 * s3
+        r_0c[..., 2, 1] = 0.0
+        r_0c[..., 2, 2] = -s2 * s3 + c2 * c3
+        r_ce[..., 0, 0] = c4 * c5 * c6 - s4 * s6
+        r_ce[..., 0, 1] = -c4 * c5 * s6 - s4 * c6
+        r_ce[..., 0, 2] = c4 * s5
+        r_ce[..., 1, 0] = s4 * c5 * c6 + c4 * s6
+        r_ce[..., 1, 1] = -s4 * c5 * s6 + c4 * c6
+        r_ce[..., 1, 2] = s4 * s5
+        r_ce[..., 2, 0] = -s5 * c6
+        r_ce[..., 2, 1] = s5 * s6
+        r_ce[..., 2, 2] = c5
+        out = np.zeros((*shape, 4, 4))
+        rotation = out[..., :3, :3]
+        np.matmul(r_0c, r_ce, out=rotation)
+        out[..., 0, 3] = (cx1 * c1 - cy1 * s1) + self.c4 * rotation[..., 0, 2]
+        out[..., 1, 3] = (cx1 * s1 + cy1 * c1) + self.c4 * rotation[..., 1, 2]
+        out[..., 2, 3] = (cz1 + self.c1) + self.c4 * rotation[..., 2, 2]
+        out[..., 3, 3] = 1.0
+        return out
 
     def _kernel_parameters(self) -> np.ndarray:
         return np.array(

@@ -148,11 +148,25 @@ class UrArm(Arm):
         return np.stack(out, axis=-3)
 
     def _fk(self, q: np.ndarray) -> np.ndarray:
+        # The six dh_transform matrices in one array (joint first, so that each is one
+        # contiguous stack), then their product in joint order: the values of
+        # dh_transform's, operation for operation, with a sixth of its numpy calls.
         d, a = self.dh
-        pose = dh_transform(q[..., 0], d[0], a[0], _COS_ALPHA[0], _SIN_ALPHA[0])
+        theta = np.moveaxis(q, -1, 0)
+        c, s = np.cos(theta), np.sin(theta)
+        rows = (slice(None),) + (None,) * (theta.ndim - 1)
+        cos_alpha, sin_alpha = np.array(_COS_ALPHA)[rows], np.array(_SIN_ALPHA)[rows]
+        a_, d_ = np.array(a)[rows], np.array(d)[rows]
+        t = np.zeros((*theta.shape, 4, 4))
+        t[..., 0, 0], t[..., 0, 1], t[..., 0, 2], t[..., 0, 3] = (
+            c, -s * cos_alpha, s * sin_alpha, a_ * c)
+        t[..., 1, 0], t[..., 1, 1], t[..., 1, 2], t[..., 1, 3] = (
+            s, c * cos_alpha, -c * sin_alpha, a_ * s)
+        t[..., 2, 1], t[..., 2, 2], t[..., 2, 3] = sin_alpha, cos_alpha, d_
+        t[..., 3, 3] = 1.0
+        pose = t[0]
         for joint in range(1, 6):
-            pose = pose @ dh_transform(q[..., joint], d[joint], a[joint],
-                                       _COS_ALPHA[joint], _SIN_ALPHA[joint])
+            pose = pose @ t[joint]
         return pose
 
     def _kernel_parameters(self) -> np.ndarray:
