@@ -89,7 +89,7 @@ class _Ladder:
     valid: np.ndarray
     endpoint: np.ndarray
     continuity: Continuity | None
-    fingerprint: tuple[bytes, bytes, bytes]
+    fingerprint: tuple[bytes, bytes, bytes] | None
 
     @property
     def nbytes(self) -> int:
@@ -218,11 +218,27 @@ class MovePricer:
         return TaskMoves(self, task, known.candidates, known.valid, known.endpoint,
                          known.continuity, known.fingerprint)
 
+    def solved(self, task: Task, candidates: np.ndarray, valid: np.ndarray,
+               endpoint: np.ndarray) -> TaskMoves:
+        """The ladder of ``task`` from its candidates, validity and endpoint hits solved
+        elsewhere (a batch of resets solves every env's waypoints in one call): the
+        singularity margins and process continuity applied as :meth:`task` applies them."""
+        known = self._restricted(task, candidates, valid, endpoint, fingerprint=False)
+        return TaskMoves(self, task, known.candidates, known.valid, known.endpoint,
+                         known.continuity)
+
     def _ladder(self, task: Task) -> _Ladder:
         """The arrays of :meth:`task`'s ladder, solved. They are shared by the ladders of
         every task with these poses, and nothing writes to them (the kernels take them
         writable: numba would compile a read-only array's version apart)."""
         candidates, valid, endpoint = self.solve(task.poses)
+        return self._restricted(task, candidates, valid, endpoint, fingerprint=True)
+
+    def _restricted(self, task: Task, candidates: np.ndarray, valid: np.ndarray,
+                    endpoint: np.ndarray, fingerprint: bool) -> _Ladder:
+        """A ladder's arrays from the solved ones: branches inside the singularity margins
+        left out, then, with process continuity, those from which their segment cannot be
+        followed (their rows NaN); with ``fingerprint``, the arrays' bytes too."""
         if not valid.any(axis=-1).all():
             raise RuntimeError("task generator produced a waypoint without a valid branch")
         if self.singularity_margin is not None or self.shoulder_margin is not None:
@@ -238,7 +254,8 @@ class MovePricer:
             candidates = np.where(valid[..., None], candidates, np.nan)
             endpoint = endpoint & valid
         return _Ladder(candidates, valid, endpoint, kept,
-                       (candidates.tobytes(), valid.tobytes(), endpoint.tobytes()))
+                       (candidates.tobytes(), valid.tobytes(), endpoint.tobytes())
+                       if fingerprint else None)
 
     def _clear_of_singularities(self, candidates: np.ndarray, valid: np.ndarray) -> np.ndarray:
         """(N, K): valid branches outside the singularity margins; ``ValueError`` naming

@@ -135,8 +135,5 @@ def _solve(envs: Sequence[IKBranchEnv], tasks: Sequence[Task],
     ladders = []
     for i, (env, task) in enumerate(zip(envs, tasks, strict=True)):
         rows = slice(i * n, (i + 1) * n)
-        if not valid[rows].any(axis=-1).all():
-            raise RuntimeError("task generator produced a waypoint without a valid branch")
-        ladders.append(TaskMoves(env.pricer, task, candidates[rows], valid[rows],
-                                 endpoint[rows]))
+        ladders.append(env.pricer.solved(task, candidates[rows], valid[rows], endpoint[rows]))
     return ladders

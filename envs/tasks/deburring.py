@@ -22,6 +22,7 @@ in the order of their travel. Otherwise the pass is drawn again (``ROUNDS`` time
 from __future__ import annotations
 
 import math
+from functools import cache
 
 import numpy as np
 
@@ -49,11 +50,13 @@ START = (0.0, -1.5707963267948966, 1.5707963267948966, 0.0, 0.7853981633974483, 
 ROUNDS = 200
 
 
+@cache
 def rim_samples() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The rim once round, anticlockwise seen from above, from the start of the +x edge:
     points (M, 3), outward normals (M, 3) and tangents (M, 3) (horizontal unit vectors).
     Each straight edge is sampled from its start every about ``SPACING``, each corner arc
-    from its start every ``CORNER_STEP`` of turn (an edge's end is its corner's start)."""
+    from its start every ``CORNER_STEP`` of turn (an edge's end is its corner's start).
+    Computed once, read-only (every pass is cut from it)."""
     cx, cy = PART_CENTRE
     hx, hy = PART_HALF
     r = CORNER_RADIUS
@@ -77,7 +80,10 @@ def rim_samples() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             normals.append((*unit, 0.0))
     normals_array = np.array(normals)
     tangents = np.cross(np.array([0.0, 0.0, 1.0]), normals_array)  # anticlockwise
-    return np.array(points), normals_array, tangents
+    samples = (np.array(points), normals_array, tangents)
+    for array in samples:
+        array.flags.writeable = False
+    return samples
 
 
 def rim_poses(points: np.ndarray, normals: np.ndarray, tangents: np.ndarray,
