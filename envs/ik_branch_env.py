@@ -300,6 +300,13 @@ class IKBranchEnv(gym.Env):
     ===================== ======================= ===========================================
 
     ## Version history
+    - KukaKR6Deburring **-v1** (2026-12-07): the pass keeps one configuration: inside it
+      only moves within 30° on every joint are in the mask (``max_joint_step``). A reset
+      solves its waypoints in one call with the other resetting envs', and the ladder it
+      made from them left out the step limit (and the singularity margins): -v0 never
+      applied its limit, so its mask offers moves that reconfigure the arm mid-pass. -v0
+      stays registered, unchanged, for its published models; its spec now names no
+      limit, which is what it always did.
     - UR5e **-v4** (2026-12-06): the random task draws its chain of configurations (the
       start, and the configurations whose poses are the waypoints) within one turn of each
       joint's zero (``task_joint_range`` [−π, π] for every joint), where UR5e-v3 draws them

@@ -41,6 +41,7 @@ import numpy as np
 from ikbranch_gym.envs.jit import njit
 from ikbranch_gym.envs.kinematics import Arm
 from ikbranch_gym.envs.moves import TEMPLATE_CACHE_BYTES, TEMPLATE_SIGHTINGS, TaskMoves
+from ikbranch_gym.envs.process import move_blocked
 
 #: The observation layouts (module docstring).
 OBSERVATIONS = ("compact", "ladder")
@@ -55,13 +56,16 @@ _TurnTables = tuple[bool, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 @njit
 def _travel_summaries(candidates: np.ndarray, valid: np.ndarray, free: np.ndarray,
-                      weights: np.ndarray, scale: float, leaving: np.ndarray,
-                      arriving: np.ndarray) -> None:
+                      weights: np.ndarray, scale: float, inside: np.ndarray,
+                      configuration: np.ndarray, limit: float, revolute: np.ndarray,
+                      leaving: np.ndarray, arriving: np.ndarray) -> None:
     """Per waypoint i < N − 1 and branch a, the least weighted travel Σ_j w_j|Δq_j| from
     valid branch a to any *free* branch of waypoint i + 1 (``leaving[i, a]``), and per
     branch b of waypoint i + 1 the least from any free branch of waypoint i
     (``arriving[i + 1, b]``), over ``scale`` and capped at 1 (1 where nothing qualifies,
-    for invalid branches, at the ends). One pass over each pair of waypoints."""
+    for invalid branches, at the ends). A move into a waypoint ``inside`` a process
+    segment that reconfigures the arm (``envs.process.move_blocked`` with ``limit``) is
+    no move. One pass over each pair of waypoints."""
     n, k, dof = candidates.shape
     leaving[:] = 1.0
     arriving[:] = 1.0
@@ -74,6 +78,10 @@ def _travel_summaries(candidates: np.ndarray, valid: np.ndarray, free: np.ndarra
                 continue
             for b in range(k):
                 if not valid[i + 1, b]:
+                    continue
+                if inside[i + 1] and move_blocked(candidates[i, a], configuration[a],
+                                                  candidates[i + 1, b], configuration[b],
+                                                  limit, revolute):
                     continue
                 travel = 0.0
                 for j in range(dof):
@@ -461,12 +469,15 @@ class ObservationBuilder:
             closed, turned, turns, n_closed, windows = self._turns
             tables = _turn_tables(ladder.candidates, ladder.valid, ladder.endpoint_collision,
                                   closed, turned, turns, n_closed, windows)
-        if tables is not None and tables[0]:
+        # A process segment's blocked moves are not factors of the ladder: the general
+        # kernel leaves them out.
+        if tables is not None and tables[0] and not ladder.inside.any():
             assert self._turns is not None  # tables are made from the turn factors only
             _turned_travel_summaries(ladder.valid, tables, closed, turned, turns, weights,
                                      scale, leaving, arriving)
         else:
             _travel_summaries(ladder.candidates, ladder.valid,
                               ladder.valid & ~ladder.endpoint_collision, weights, scale,
-                              leaving, arriving)
+                              ladder.inside, ladder.configuration, float(ladder.limit),
+                              ladder.revolute, leaving, arriving)
         return leaving, arriving

@@ -113,7 +113,7 @@ CURRENT = {
     "IKBranch/UR5e-v4": "IKBranch/UR5e-v3",  # see ONE_TURN
     "IKBranch/IRB4600ToolTransfer-v1": "IKBranch/IRB4600ToolTransfer-v0",
     "IKBranch/IRB2600Screwing-v1": "IKBranch/IRB2600Screwing-v0",
-    "IKBranch/KukaKR6Deburring-v0": None,  # a new job, no generation before
+    "IKBranch/KukaKR6Deburring-v1": "IKBranch/KukaKR6Deburring-v0",  # see CONTINUOUS
 }
 #: Ids of the current generation that see several moves ahead, and those moves; the id
 #: each succeeds is of the drawn generation, collided as drawn, and stays registered.
@@ -121,24 +121,34 @@ ONWARD = {"IKBranch/Anthropomorphic-v4": 3, "IKBranch/UR5e-v2": 2, "IKBranch/Kuk
 DRAWN_BEFORE = {"IKBranch/Anthropomorphic-v3": "IKBranch/Anthropomorphic-v2",
                 "IKBranch/UR5e-v1": "IKBranch/UR5e-v0", "IKBranch/UR5e-v2": "IKBranch/UR5e-v1",
                 "IKBranch/KukaKR6-v1": "IKBranch/KukaKR6-v0",
-                "IKBranch/UR5e-v3": "IKBranch/UR5e-v2"}
+                "IKBranch/UR5e-v3": "IKBranch/UR5e-v2",
+                "IKBranch/KukaKR6Deburring-v0": None}  # a new job, no generation before
 #: Ids of the current generation that check the moves into the next waypoint until so
 #: many are free; the id each succeeds sees several moves ahead and stays registered.
 CHECKED = {"IKBranch/UR5e-v3": 8}
 #: Ids of the current generation whose random task draws within one turn of each joint's
 #: zero; the id each succeeds checks moves until so many are free and stays registered.
 ONE_TURN = {"IKBranch/UR5e-v4": [[-np.pi, np.pi]] * 6}
+#: Ids of the current generation that keep a process pass in one configuration, and their
+#: step limit; the id each succeeds (a new job, no generation before it) names none and
+#: stays registered.
+CONTINUOUS = {"IKBranch/KukaKR6Deburring-v1": np.radians(30.0)}
 
 
-def test_the_deburring_job_is_the_kr6_on_its_cell_with_a_free_burr():
-    made = {**DEFAULTS, **gym.spec("IKBranch/KukaKR6Deburring-v0").kwargs}
+@pytest.mark.parametrize("version", [0, 1])
+def test_the_deburring_job_is_the_kr6_on_its_cell_with_a_free_burr(version):
+    env_id = f"IKBranch/KukaKR6Deburring-v{version}"
+    made = {**DEFAULTS, **gym.spec(env_id).kwargs}
     assert (made["arm"], made["scene"], made["task"]) == (
         "kuka_kr6_r700", "deburring_cell", "deburring")
     assert made["collision_shapes"] == "drawn" and made["allowed_contacts"] == [
         ["tool_1", "part*"]]
-    env = gym.make("IKBranch/KukaKR6Deburring-v0")
+    env = gym.make(env_id)
     assert env.action_space.n == 32 * 5  # the KR 6 R700's branches × the burr's spins
-    assert env.unwrapped.pricer.max_joint_step == pytest.approx(np.radians(30.0))
+    # v0 names no step limit (its resets never applied one); v1 keeps the pass in one
+    # configuration.
+    limit = env.unwrapped.pricer.max_joint_step
+    assert limit is None if version == 0 else limit == pytest.approx(np.radians(30.0))
 
 
 def test_every_required_id_is_registered_and_makes_what_it_says():
@@ -170,6 +180,11 @@ def test_every_required_id_is_registered_and_makes_what_it_says():
             assert (now.pop("task_joint_range"), then.get("task_joint_range")) == (
                 ONE_TURN[env_id], None), env_id
             assert before in CHECKED and now == then, env_id
+            continue
+        if env_id in CONTINUOUS:
+            assert (now.pop("max_joint_step"), then.get("max_joint_step")) == (
+                pytest.approx(CONTINUOUS[env_id]), None), env_id
+            assert now == then, env_id
             continue
         assert (now.pop("collision_shapes"), then.pop("collision_shapes")) == (
             "drawn", "inscribed"), env_id

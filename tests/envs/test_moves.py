@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from ikbranch_gym.envs.moves import REWARD_TERMS, TaskMoves
+from ikbranch_gym.envs.process import UNKNOWN, blocked
 from tests.envs.env_cases import IDS, make
 
 
@@ -53,7 +54,10 @@ def test_onward_travel_is_the_priced_travel(env_id):
         out, asked = np.full((1, k, k), -1.0), rows[None].copy()
         _onward_travel(here[None], ladder.candidates[w + 1][None], asked, targets[None],
                        ladder.pricer.cost.weights, out)
-        both = rows[:, None] & targets[None]
+        # A move reconfiguring the arm inside a process segment is priced as an invalid
+        # branch (no motion); the searches leave it out apart (_block_moves_from).
+        moves = ~ladder.terms(here, w + 1, collision=np.zeros((k, k), dtype=bool))["invalid"]
+        both = rows[:, None] & targets[None] & moves
         np.testing.assert_array_equal(out[0][both], priced[both])
         assert np.isposinf(out[0][rows[:, None] & ~targets[None]]).all()
         assert (out[0][~rows] == -1.0).all()
@@ -73,20 +77,28 @@ def test_reward_is_the_sum_of_its_terms_and_travel_is_the_cost_models(env_id):
         for name in REWARD_TERMS:
             total = total + terms[name]
         np.testing.assert_array_equal(terms["reward"], total)
-        np.testing.assert_array_equal(terms["collision"], collision)
         valid = ladder.valid[w]
-        np.testing.assert_array_equal(terms["invalid"], np.broadcast_to(~valid, total.shape))
+        # Invalid: the branch, or a move reconfiguring the arm inside a process segment
+        # (from a configuration of unknown branch only the step limit applies), which
+        # does not move and so collides with nothing.
+        reconfigures = (blocked(origins, np.full(len(origins), UNKNOWN), ladder.candidates[w],
+                                ladder.configuration, ladder.limit, ladder.revolute)
+                        if ladder.inside[w] else np.zeros(total.shape, dtype=bool))
+        np.testing.assert_array_equal(terms["collision"], collision & ~reconfigures)
+        np.testing.assert_array_equal(terms["invalid"], ~valid[None] | reconfigures)
         cost = ladder.pricer.cost
-        targets = ladder.candidates[w][valid]
         if w == 0 and ladder.task.free_start:
             assert (terms["travel"] == 0).all() and (terms["time"] == 0).all()
         else:
             # TransitionCost (numpy) and the kernel agree to the last bit.
-            np.testing.assert_array_equal(terms["travel"][:, valid],
-                                          cost.travel(origins[:, None], targets[None]))
-            np.testing.assert_array_equal(terms["time"][:, valid],
-                                          cost.time(origins[:, None], targets[None]))
-            assert (terms["travel"][:, ~valid] == 0).all()
+            moves = valid[None] & ~reconfigures
+            expected = np.broadcast_to(ladder.candidates[w][None], (*moves.shape, arm.dof))
+            origin = np.broadcast_to(origins[:, None], expected.shape)
+            np.testing.assert_array_equal(terms["travel"][moves],
+                                          cost.travel(origin[moves], expected[moves]))
+            np.testing.assert_array_equal(terms["time"][moves],
+                                          cost.time(origin[moves], expected[moves]))
+            assert (terms["travel"][~moves] == 0).all()
 
 
 def test_caches_answer_as_the_checker_and_keep_their_bounds():

@@ -287,7 +287,9 @@ def test_tasks_that_never_repeat_fill_no_template_cache():
 
 @pytest.mark.parametrize("env_id", IDS)
 def test_travel_summaries_are_the_priced_travel(env_id):
-    # Bit for bit the travel step pays (envs.moves._price), least over the free branches.
+    # Bit for bit the travel step pays (envs.moves._price), least over the free branches;
+    # a move that step prices as invalid (one reconfiguring the arm inside a process
+    # segment) is no move.
     from ikbranch_gym.envs.observations import _travel_summaries
 
     env = gym.make(env_id, n_waypoints=4)
@@ -297,10 +299,13 @@ def test_travel_summaries_are_the_priced_travel(env_id):
     free = ladder.valid & ~ladder.endpoint_collision
     leaving, arriving = np.empty((n, k)), np.empty((n, k))
     _travel_summaries(ladder.candidates, ladder.valid, free, ladder.pricer.cost.weights, scale,
-                      leaving, arriving)
+                      ladder.inside, ladder.configuration, float(ladder.limit),
+                      ladder.revolute, leaving, arriving)
     expected_out, expected_in = np.ones((n, k)), np.ones((n, k))
     for i in range(n - 1):
-        travel, _ = ladder.motion(ladder.candidates[i], i + 1)
+        here = ladder.candidates[i]
+        terms = ladder.terms(here, i + 1, collision=np.zeros((k, k), dtype=bool))
+        travel = np.where(terms["invalid"], np.inf, terms["travel"])
         out = np.where(ladder.valid[i][:, None] & free[i + 1][None], travel, np.inf)
         into = np.where(free[i][:, None] & ladder.valid[i + 1][None], travel, np.inf)
         expected_out[i] = np.minimum(out.min(axis=1) / scale, 1.0)
@@ -335,7 +340,9 @@ def test_factored_travel_summaries_are_the_general_ones(env_id):
         expected, factored = [np.empty((n, k)), np.empty((n, k))], [np.empty((n, k)),
                                                                     np.empty((n, k))]
         _travel_summaries(ladder.candidates, ladder.valid,
-                          ladder.valid & ~ladder.endpoint_collision, weights, scale, *expected)
+                          ladder.valid & ~ladder.endpoint_collision, weights, scale,
+                          ladder.inside, ladder.configuration, float(ladder.limit),
+                          ladder.revolute, *expected)
         tables = _turn_tables(ladder.candidates, ladder.valid, ladder.endpoint_collision,
                               *factors)
         assert tables[0]  # the ladder is the product of its factors

@@ -136,7 +136,7 @@ def test_allowed_contacts_alone_leave_the_independent_check():
     # The deburring id lets the burr (tool_1) touch the part: those drawn pairs are the
     # job; the spindle (tool) against the part, and the burr against the clamps, are still
     # measured.
-    env = gym.make("IKBranch/KukaKR6Deburring-v0")
+    env = gym.make("IKBranch/KukaKR6Deburring-v1")
     env.reset(seed=0)
     probe = Measure(env)
     model = env.unwrapped.model

@@ -26,7 +26,7 @@ from ikbranch_gym.envs.tasks.deburring import (
 )
 from tests.envs.tasks.helpers import all_paths_free, everywhere_free
 
-ID = "IKBranch/KukaKR6Deburring-v0"
+ID = "IKBranch/KukaKR6Deburring-v1"
 
 
 def _rim_distance(points: np.ndarray) -> np.ndarray:
@@ -136,3 +136,59 @@ def test_the_deburring_id_plans_the_pass_in_one_configuration_with_the_spin():
         assert len(set(closed.tolist())) == 1
         spins |= {float(base.arm.branch_angles[a]) for a in actions}
     assert len(spins) > 1
+
+
+def _masked_steps(env_id: str, seeds: range, **kwargs) -> list[float]:
+    """The largest revolute step (rad) of every move inside the pass that the mask offers,
+    along episodes of the first offered branch; each reset's ladder checked against the
+    pricer's own (solved pose by pose, margins and continuity applied there)."""
+    env = gym.make(env_id, **kwargs)
+    base = env.unwrapped
+    revolute = base.arm.revolute_mask
+    steps = []
+    for seed in seeds:
+        _, info = env.reset(seed=seed)
+        ladder = base.ladder
+        own = base.pricer.task(ladder.task)
+        np.testing.assert_array_equal(ladder.candidates, own.candidates)
+        np.testing.assert_array_equal(ladder.valid, own.valid)
+        np.testing.assert_array_equal(ladder.endpoint_collision, own.endpoint_collision)
+        np.testing.assert_array_equal(ladder.inside, own.inside)
+        assert ladder.limit == own.limit
+        done, waypoint, q = False, 0, None
+        while not done:
+            offered = np.flatnonzero(info["action_mask"])
+            if waypoint > 0:  # inside the pass: from the branch taken to each offered one
+                moves = np.abs(ladder.candidates[waypoint, offered] - q)[:, revolute]
+                steps += moves.max(axis=1).tolist()
+            q = ladder.candidates[waypoint, offered[0]]
+            _, _, terminated, truncated, info = env.step(int(offered[0]))
+            done, waypoint = terminated or truncated, waypoint + 1
+    return steps
+
+
+def test_the_pass_offers_no_move_that_reconfigures_the_arm():
+    """A reset solves its waypoints in one batched call; the ladder it makes applies the
+    pass's step limit as the pricer's own does, so inside the pass every offered move
+    stays within 30° on every joint. KukaKR6Deburring-v0 names no limit (its resets never
+    applied one): there the mask offers reconfigurations."""
+    assert max(_masked_steps(ID, range(3))) <= math.radians(30.0)
+    assert max(_masked_steps("IKBranch/KukaKR6Deburring-v0", range(3))) > math.radians(90.0)
+
+
+def test_a_batched_reset_leaves_out_the_branches_near_a_singularity():
+    """The singularity margins apply to a batched reset's ladder as to the pricer's own."""
+    margin = math.radians(25.0)
+    env = gym.make(ID, singularity_margin=margin)
+    base = env.unwrapped
+    left_out = 0
+    for seed in range(10):
+        env.reset(seed=seed)
+        plain = gym.make(ID).unwrapped
+        plain.reset(seed=seed)
+        assert np.array_equal(plain.ladder.task.poses, base.ladder.task.poses)
+        left_out += int((plain.ladder.valid & ~base.ladder.valid).sum())
+        own = base.pricer.task(base.ladder.task)
+        np.testing.assert_array_equal(base.ladder.valid, own.valid)
+        np.testing.assert_array_equal(base.ladder.candidates, own.candidates)
+    assert left_out > 0
