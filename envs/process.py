@@ -139,21 +139,56 @@ def least_limits(candidates: np.ndarray, valid: np.ndarray, inside: np.ndarray,
     from its segment's first waypoint to w keeping one configuration, valid branches only
     (+inf where none does at any limit: a configuration the segment cannot keep). The
     value at a segment's last waypoint is the least limit that follows the segment."""
-    n = len(candidates)
-    need = np.empty(n)
-    best = np.where(valid[0], 0.0, np.inf)
-    need[0] = best.min()
-    for w in range(1, n):
-        if not inside[w]:
-            best = np.where(valid[w], 0.0, np.inf)
-        else:
-            steps = largest_steps(candidates[w - 1][:, None], candidates[w][None, :], revolute)
-            same = configuration[:, None] == configuration[None, :]
-            usable = same & valid[w - 1][:, None] & valid[w][None, :]
-            via = np.where(usable, np.maximum(best[:, None], steps), np.inf)
-            best = via.min(axis=0)
-        need[w] = best.min()
+    need = np.empty(len(candidates))
+    _least_limits(writable(np.ascontiguousarray(candidates, dtype=np.float64)),
+                  writable(np.asarray(valid, dtype=np.bool_)),
+                  writable(np.asarray(inside, dtype=np.bool_)),
+                  writable(np.asarray(configuration, dtype=np.int64)),
+                  writable(np.asarray(revolute, dtype=np.bool_)), need)
     return need
+
+
+@njit
+def _least_limits(candidates: np.ndarray, valid: np.ndarray, inside: np.ndarray,
+                  configuration: np.ndarray, revolute: np.ndarray, need: np.ndarray) -> None:
+    """:func:`least_limits` into ``need``: per waypoint, each branch's least limit ``best``
+    (0 at a segment's first waypoint, +inf where invalid), then over every move of one
+    configuration between valid branches, the larger of the origin's and the move's
+    largest revolute step, least over the origins."""
+    n, k = valid.shape
+    best, after = np.empty(k), np.empty(k)
+    for w in range(n):
+        if w == 0 or not inside[w]:
+            for b in range(k):
+                best[b] = 0.0 if valid[w, b] else np.inf
+        else:
+            for b in range(k):
+                after[b] = np.inf
+                if not valid[w, b]:
+                    continue
+                for a in range(k):
+                    if not valid[w - 1, a] or configuration[a] != configuration[b]:
+                        continue
+                    via = max(best[a], _largest_step(candidates[w - 1, a], candidates[w, b],
+                                                     revolute))
+                    if via < after[b]:
+                        after[b] = via
+            best[:] = after
+        least = np.inf
+        for b in range(k):
+            if best[b] < least:
+                least = best[b]
+        need[w] = least
+
+
+@njit(inline="always")
+def _largest_step(q0: np.ndarray, q1: np.ndarray, revolute: np.ndarray) -> float:
+    """The largest |Δq_j| over revolute joints j of q0 → q1 (0 without any)."""
+    step = 0.0
+    for j in range(len(q0)):
+        if revolute[j]:
+            step = max(step, abs(q1[j] - q0[j]))
+    return step
 
 
 def followable(candidates: np.ndarray, valid: np.ndarray, inside: np.ndarray,

@@ -499,3 +499,42 @@ def test_a_linear_path_names_a_singularity_on_the_line_and_another_turn():
     path = linear_path(arm, q0, turned, configuration, math.radians(10.0))
     assert path.problem == ("the line arrives in another turn or configuration than the "
                             "waypoint's (360.0°)")
+
+
+def _least_limits_by_arrays(candidates, valid, inside, configuration, revolute):
+    """least_limits as (K, K) arrays a waypoint: every move's largest revolute step, the
+    moves of one configuration between valid branches, the larger of the origin's limit and
+    the step, least over the origins."""
+    n = len(candidates)
+    need = np.empty(n)
+    best = np.where(valid[0], 0.0, np.inf)
+    need[0] = best.min()
+    for w in range(1, n):
+        if not inside[w]:
+            best = np.where(valid[w], 0.0, np.inf)
+        else:
+            delta = np.abs(candidates[w][None, :] - candidates[w - 1][:, None])[..., revolute]
+            steps = delta.max(axis=-1) if delta.shape[-1] else np.zeros(delta.shape[:-1])
+            same = configuration[:, None] == configuration[None, :]
+            usable = same & valid[w - 1][:, None] & valid[w][None, :]
+            best = np.where(usable, np.maximum(best[:, None], steps), np.inf).min(axis=0)
+        need[w] = best.min()
+    return need
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_least_limits_are_those_of_every_move(seed):
+    """The compiled least limits equal the arrays' bit for bit: invalid branches (NaN
+    rows), several segments, configurations, and an arm without revolute joints too."""
+    rng = np.random.default_rng(seed)
+    n, k, dof = 7, 24, 6
+    candidates = rng.uniform(-4.0, 4.0, size=(n, k, dof))
+    valid = rng.random((n, k)) < 0.7
+    candidates[~valid] = np.nan
+    segments = np.cumsum(rng.random(n) < 0.3)
+    configuration = rng.integers(0, 4, size=k)
+    revolute = rng.random(dof) < (0.0 if seed == 5 else 0.8)
+    inside = inside_moves(segments)
+    np.testing.assert_array_equal(
+        least_limits(candidates, valid, inside, configuration, revolute),
+        _least_limits_by_arrays(candidates, valid, inside, configuration, revolute))
