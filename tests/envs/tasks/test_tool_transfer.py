@@ -104,7 +104,8 @@ def test_tool_changes_draw_as_arrays_of_draws(n_waypoints):
         np.testing.assert_array_equal(task.poses, np.array(poses)[:n_waypoints])
         after = np.random.default_rng(seed)
         TASKS["tool_changes"](ARM, after, n_waypoints, _everything_free, all_paths_free)
-        assert after.random() == rng.random()
+        # The whole state, the buffered half of a 64-bit draw included.
+        assert after.bit_generator.state == rng.bit_generator.state
 
 
 def test_tool_changes_start_collision_free():
