@@ -81,9 +81,9 @@ class _Cache:
 
 @dataclass(frozen=True)
 class _Ladder:
-    """What a task's ladder holds beyond the task: read-only arrays, its continuity (None
-    without) and its fingerprint (the arrays' bytes: what the observation templates are
-    keyed by)."""
+    """What a task's ladder holds beyond the task: its arrays (shared by every ladder of
+    the task, written by none), its continuity (None without) and its fingerprint (the
+    arrays' bytes: what the observation templates are keyed by)."""
 
     candidates: np.ndarray
     valid: np.ndarray

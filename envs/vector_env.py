@@ -338,16 +338,21 @@ def _mask(n: int, rows: np.ndarray) -> np.ndarray:
 
 
 def _put(infos: dict[str, Any], key: str, rows: np.ndarray, values: np.ndarray,
-         n: int | None = None) -> None:
+         n: int | None = None, present: np.ndarray | None = None) -> None:
     """``infos[key][rows] = values`` and ``infos["_" + key][rows] = True``, the arrays made
-    as ``VectorEnv._add_info`` makes them (zeros of the values' dtype and shape)."""
+    as ``VectorEnv._add_info`` makes them (zeros of the values' dtype and shape);
+    ``present`` is the rows' mask where the caller has it (a new key stores a copy)."""
     if key not in infos:
         count = len(infos[next(iter(infos))]) if n is None and infos else n
         if count is None:
             count = len(rows)
         values = np.asarray(values)
         infos[key] = np.zeros((count, *values.shape[1:]), dtype=values.dtype)
-        infos["_" + key] = np.zeros(count, dtype=bool)
+        infos[key][rows] = values
+        infos["_" + key] = np.zeros(count, dtype=bool) if present is None else present.copy()
+        if present is None:
+            infos["_" + key][rows] = True
+        return
     infos[key][rows] = values
     infos["_" + key][rows] = True
 
@@ -380,12 +385,9 @@ def _step_infos(n: int, rows: np.ndarray, steps: Steps,
     columns = {"waypoint": steps.waypoint, "branch": steps.branch, "travel": steps.travel,
                "time": steps.time, **steps.terms, "collision": steps.collision,
                "invalid": steps.invalid}
-    present = _mask(n, picked)
-    for key, value in columns.items():  # _put's arrays, the rows' mask made once
-        values = value[pick]
-        infos[key] = np.zeros((n, *values.shape[1:]), dtype=values.dtype)
-        infos[key][picked] = values
-        infos["_" + key] = present.copy()
+    present = _mask(n, picked)  # made once for every column
+    for key, value in columns.items():
+        _put(infos, key, picked, value[pick], n=n, present=present)
     ended = steps.terminated[pick]
     if ended.any():
         _put(infos, "is_success", picked[ended], steps.success[pick][ended], n=n)

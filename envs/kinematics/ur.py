@@ -74,9 +74,10 @@ _WRIST = np.array([1.0, -1.0])  # wrist+, wrist−: the sign of sin θ5
 
 
 def dh_transform(
-    theta: ArrayLike, d: float, a: float, cos_alpha: float, sin_alpha: float
+    theta: ArrayLike, d: ArrayLike, a: ArrayLike, cos_alpha: ArrayLike, sin_alpha: ArrayLike
 ) -> np.ndarray:
-    """Rz(θ)·Tz(d)·Tx(a)·Rx(α), batched over θ (…,) -> (…, 4, 4)."""
+    """Rz(θ)·Tz(d)·Tx(a)·Rx(α), batched over θ (…,) -> (…, 4, 4); the DH values are
+    floats or arrays that broadcast against θ (several joints at once)."""
     theta = np.asarray(theta, dtype=np.float64)
     c, s = np.cos(theta), np.sin(theta)
     out = np.zeros((*theta.shape, 4, 4))
@@ -148,22 +149,14 @@ class UrArm(Arm):
         return np.stack(out, axis=-3)
 
     def _fk(self, q: np.ndarray) -> np.ndarray:
-        # The six dh_transform matrices in one array (joint first, so that each is one
-        # contiguous stack), then their product in joint order: the values of
-        # dh_transform's, operation for operation, with a sixth of its numpy calls.
+        # The six dh_transform matrices in one call (joint first, so that each is one
+        # contiguous stack), then their product in joint order: dh_transform's values,
+        # with a sixth of its numpy calls.
         d, a = self.dh
         theta = np.moveaxis(q, -1, 0)
-        c, s = np.cos(theta), np.sin(theta)
         rows = (slice(None),) + (None,) * (theta.ndim - 1)
-        cos_alpha, sin_alpha = np.array(_COS_ALPHA)[rows], np.array(_SIN_ALPHA)[rows]
-        a_, d_ = np.array(a)[rows], np.array(d)[rows]
-        t = np.zeros((*theta.shape, 4, 4))
-        t[..., 0, 0], t[..., 0, 1], t[..., 0, 2], t[..., 0, 3] = (
-            c, -s * cos_alpha, s * sin_alpha, a_ * c)
-        t[..., 1, 0], t[..., 1, 1], t[..., 1, 2], t[..., 1, 3] = (
-            s, c * cos_alpha, -c * sin_alpha, a_ * s)
-        t[..., 2, 1], t[..., 2, 2], t[..., 2, 3] = sin_alpha, cos_alpha, d_
-        t[..., 3, 3] = 1.0
+        t = dh_transform(theta, np.array(d)[rows], np.array(a)[rows],
+                         np.array(_COS_ALPHA)[rows], np.array(_SIN_ALPHA)[rows])
         pose = t[0]
         for joint in range(1, 6):
             pose = pose @ t[joint]
