@@ -35,6 +35,7 @@
 
 #define L 16
 #define SLACK 1e-9
+#define FAR_SQUARED 1e-12
 /* 128 units in the last place of single precision (2^-24 each): the error bound of a
  * single-precision distance per metre of its coordinates (docs/models.md). */
 #define ROUNDING (128.0 * 0x1p-24)
@@ -46,6 +47,8 @@ enum { FIXED_SPHERE, FIXED_HALF_SPACE, MOVING_PARTNER, OUT_OF_REACH };
 /* Branch-free minimum and maximum (vminpd, vmaxpd: no NaN reaches them). */
 #define MIN(a, b) ((a) < (b) ? (a) : (b))
 #define MAX(a, b) ((a) > (b) ? (a) : (b))
+/* Inlined into lane_block, so that a full block's loops run over the constant L. */
+#define INLINE static inline __attribute__((always_inline))
 
 /* One scene of a compiled filter (layout.CompiledScene, its row of the per-scene
  * arrays) and the covers of its moving geoms; built by lanes.py. */
@@ -67,9 +70,10 @@ typedef struct {
 } Scene;
 
 /* One call's lanes: start[nq][L], change[nq][L], t[L], cap[L], rates[npair][L] in;
- * step[L] out; work: body frames and slot centres (double), then the slot centres, slot
- * frames and cover centres in single precision (lanes.py: work_size); width: lanes
- * 0 .. width - 1 are bounded (rounded up to a multiple of 4), the rest left. */
+ * step[L] out; work: body frames, slot centres and their largest coordinates (double),
+ * then the slot centres, slot frames and cover centres in single precision (lanes.py:
+ * work_size); width: lanes 0 .. width - 1 are bounded (rounded up to a multiple of 4),
+ * the rest left. */
 typedef struct {
   const double *start, *change, *t, *cap, *rates;
   double *step, *work;
@@ -86,7 +90,7 @@ static const double C1 = 4.16666666666666019037e-02, C2 = -1.3888888888874109574
                     C3 = 2.48015872894767294178e-05, C4 = -2.75573143513906633035e-07,
                     C5 = 2.08757232129817482790e-09, C6 = -1.13596475577881948265e-11;
 
-static void sin_cos(int W, const double *restrict x, double *restrict sine, double *restrict cosine) {
+INLINE void sin_cos(int W, const double *restrict x, double *restrict sine, double *restrict cosine) {
   for (int l = 0; l < W; l++) {
     double k = floor(x[l] * 0.63661977236758134308 + 0.5);
     double r = (x[l] - k * PIO2_1) - k * PIO2_1T, z = r * r;
@@ -100,21 +104,23 @@ static void sin_cos(int W, const double *restrict x, double *restrict sine, doub
 }
 
 /* Frames of the moving bodies for every lane, composed as the scalar kernels (and
- * mj_kinematics) do: the parent's frame times the body offset, then each joint. */
-static void forward(int W, const Scene *S, const Block *B, double *restrict xl, double *restrict ml) {
+ * mj_kinematics) do: the parent's frame times the body offset, then each joint. A static
+ * body's frame is the model's, laid into the lanes only where a moving child needs it
+ * (nothing else reads them: static slots are placed in the world). */
+INLINE void forward(int W, const Scene *S, const Block *B, double *restrict xl, double *restrict ml) {
   double angle[L], sine[L], cosine[L];
   const double *restrict t = B->t;
   for (int64_t b = 0; b < S->nbody; b++) {
+    if (S->body_flags[b] & 1) continue;
     double *restrict X = xl + b * 3 * L, *restrict M = ml + b * 9 * L;
-    if (S->body_flags[b] & 1) {  /* static: its frame from the model */
+    int64_t parent = S->body_parent[b];
+    double *restrict PX = xl + parent * 3 * L, *restrict PM = ml + parent * 9 * L;
+    if (S->body_flags[parent] & 1) {
       for (int i = 0; i < 3; i++)
-        for (int l = 0; l < W; l++) X[i * L + l] = S->body_xpos[3 * b + i];
+        for (int l = 0; l < W; l++) PX[i * L + l] = S->body_xpos[3 * parent + i];
       for (int i = 0; i < 9; i++)
-        for (int l = 0; l < W; l++) M[i * L + l] = S->body_xmat[9 * b + i];
-      continue;
+        for (int l = 0; l < W; l++) PM[i * L + l] = S->body_xmat[9 * parent + i];
     }
-    const double *restrict PX = xl + S->body_parent[b] * 3 * L;
-    const double *restrict PM = ml + S->body_parent[b] * 9 * L;
     const double *p = S->body_pos + 3 * b, *r = S->body_rot + 9 * b;
     for (int i = 0; i < 3; i++)
       for (int l = 0; l < W; l++)
@@ -160,17 +166,18 @@ static void forward(int W, const Scene *S, const Block *B, double *restrict xl, 
   }
 }
 
-/* Centres of the moving slots (double, and rounded to single precision), frames of those
- * that are some pair's moving partner and the cover spheres' centres (single). */
-static void place(int W, const Scene *S, const double *restrict xl, const double *restrict ml,
-                  double *restrict wl, float *restrict wf, float *restrict rf,
-                  float *restrict cf) {
+/* Centres of the moving slots (double, and rounded to single precision) and their largest
+ * coordinates, frames of those that are some pair's moving partner and the cover spheres'
+ * centres (single). */
+INLINE void place(int W, const Scene *S, const double *restrict xl, const double *restrict ml,
+                  double *restrict wl, double *restrict el, float *restrict wf,
+                  float *restrict rf, float *restrict cf) {
   for (int64_t s = 0; s < S->nslot; s++) {
     if (S->slot_static[s]) continue;
     int64_t b = S->slot_body[s];
     const double *restrict X = xl + b * 3 * L, *restrict M = ml + b * 9 * L;
     const double *p = S->slot_pos + 3 * s, *q = S->slot_rot + 9 * s;
-    double *restrict Y = wl + s * 3 * L;
+    double *restrict Y = wl + s * 3 * L, *restrict E = el + s * L;
     float *restrict YF = wf + s * 3 * L, *restrict R = rf + s * 9 * L;
     for (int i = 0; i < 3; i++)
       for (int l = 0; l < W; l++) {
@@ -179,6 +186,7 @@ static void place(int W, const Scene *S, const double *restrict xl, const double
         Y[i * L + l] = y;
         YF[i * L + l] = (float)y;
       }
+    for (int l = 0; l < W; l++) E[l] = MAX(MAX(fabs(Y[l]), fabs(Y[L + l])), fabs(Y[2 * L + l]));
     if (S->slot_turned[s])
       for (int i = 0; i < 3; i++)
         for (int k = 0; k < 3; k++)
@@ -199,10 +207,10 @@ static void place(int W, const Scene *S, const double *restrict xl, const double
 
 /* (lx, ly, lz)[l] = the points (px, py, pz)[l] in slot b's frame (static: the scene's;
  * moving: each lane's), in single precision. */
-static inline void in_frame(int W, const Scene *S, int64_t b, const float *restrict px,
-                            const float *restrict py, const float *restrict pz,
-                            const float *restrict wf, const float *restrict rf,
-                            float *restrict lx, float *restrict ly, float *restrict lz) {
+INLINE void in_frame(int W, const Scene *S, int64_t b, const float *restrict px,
+                     const float *restrict py, const float *restrict pz,
+                     const float *restrict wf, const float *restrict rf,
+                     float *restrict lx, float *restrict ly, float *restrict lz) {
   if (S->slot_static[b]) {
     float o[3], q[9];
     for (int i = 0; i < 3; i++) o[i] = (float)S->slot_pos[3 * b + i];
@@ -230,10 +238,10 @@ static inline void in_frame(int W, const Scene *S, int64_t b, const float *restr
  * centre goes into b's frame and to its distance in one loop, whose values stay in
  * registers instead of passing through arrays on the stack (docs/models.md). Single
  * precision: off by at most the call's rounding bound (lane_block). */
-static inline void cover_gaps_of(int W, const Scene *S, int64_t a, int64_t b, const int fixed,
-                                 const int64_t kind, const float *restrict wf,
-                                 const float *restrict rf, const float *restrict cf,
-                                 float *restrict fine) {
+INLINE void cover_gaps_of(int W, const Scene *S, int64_t a, int64_t b, const int fixed,
+                          const int64_t kind, const float *restrict wf,
+                          const float *restrict rf, const float *restrict cf,
+                          float *restrict fine) {
   const double *size = S->slot_size + 3 * b;
   float s0 = (float)size[0], s1 = (float)size[1], s2 = (float)size[2];
   float o[3], q[9];
@@ -276,7 +284,7 @@ static inline void cover_gaps_of(int W, const Scene *S, int64_t a, int64_t b, co
 }
 
 /* cover_gaps_of, its kind and frame made constants: one specialised loop each. */
-static void cover_gaps(int W, const Scene *S, int64_t a, int64_t b, const float *restrict wf,
+INLINE void cover_gaps(int W, const Scene *S, int64_t a, int64_t b, const float *restrict wf,
                        const float *restrict rf, const float *restrict cf,
                        float *restrict fine) {
 #define COVER_GAPS(fixed, kind) cover_gaps_of(W, S, a, b, fixed, kind, wf, rf, cf, fine); break
@@ -311,7 +319,7 @@ static void cover_gaps(int W, const Scene *S, int64_t a, int64_t b, const float 
  * their spacing from the box (the axis then misses it: the point distance changes at
  * most as fast as the point moves) or an end lies inside the box by SLACK. The distances
  * in single precision, each comparison giving away rounding[l] (lane_block). */
-static void witness(int W, const Scene *S, int64_t k, int64_t a, int64_t b,
+INLINE void witness(int W, const Scene *S, int64_t k, int64_t a, int64_t b,
                     const double *restrict ml, const float *restrict wf,
                     const float *restrict rf, const double *restrict rounding,
                     double *restrict contact) {
@@ -375,31 +383,17 @@ static void witness(int W, const Scene *S, int64_t k, int64_t a, int64_t b,
   }
 }
 
-/* The largest coordinate of slot s's centre in each lane (static: the scene's). */
-static inline void extent(int W, const Scene *S, int64_t s, const double *restrict wl,
-                          double *restrict out) {
-  if (S->slot_static[s]) {
-    const double *o = S->slot_pos + 3 * s;
-    double m = MAX(MAX(fabs(o[0]), fabs(o[1])), fabs(o[2]));
-    for (int l = 0; l < W; l++) out[l] = m;
-    return;
-  }
-  const double *restrict Y = wl + s * 3 * L;
-  for (int l = 0; l < W; l++)
-    out[l] = MAX(MAX(fabs(Y[l]), fabs(Y[L + l])), fabs(Y[2 * L + l]));
-}
-
-void lane_block(const Scene *S, Block *B) {
-  double gap[L], contact[L], rounding[L], ea[L], eb[L];
+/* lane_block for lanes 0 .. W - 1. */
+INLINE void bound_lanes(const Scene *S, Block *B, const int W) {
+  double gap[L], contact[L], rounding[L];
   float fine[L];
   double *steps = B->step;
   double *xl = B->work, *ml = xl + S->nbody * 3 * L, *wl = ml + S->nbody * 9 * L;
-  float *wf = (float *)(wl + S->nslot * 3 * L), *rf = wf + S->nslot * 3 * L;
+  double *el = wl + S->nslot * 3 * L;
+  float *wf = (float *)(el + S->nslot * L), *rf = wf + S->nslot * 3 * L;
   float *cf = rf + S->nslot * 9 * L;
-  int W = (int)((B->width + 3) & ~(int64_t)3);
-  if (W > L) W = L;
   forward(W, S, B, xl, ml);
-  place(W, S, xl, ml, wl, wf, rf, cf);
+  place(W, S, xl, ml, wl, el, wf, rf, cf);
   for (int l = 0; l < W; l++) steps[l] = B->cap[l], contact[l] = 0.0;
   for (int64_t k = 0; k < S->npair; k++) {
     int64_t kind = S->pair_kind[k];
@@ -413,17 +407,25 @@ void lane_block(const Scene *S, Block *B) {
       for (int l = 0; l < W; l++)
         gap[l] = f[3] * (WA[l] - f[0]) + f[4] * (WA[L + l] - f[1]) + f[5] * (WA[2 * L + l] - f[2])
                  - reach;
+      int far = 1;
+      for (int l = 0; l < W; l++) far &= gap[l] - SLACK >= rate[l] * steps[l];
+      if (far) continue;
     } else {
+      /* Squared distances first: a lane is far where d^2 > (reach + SLACK + rate step)^2
+       * (1 + FAR_SQUARED), which implies the test on the distance below (FAR_SQUARED is
+       * far above the rounding of either), so only the pairs that go on take a root. */
+      int far = 1;
       for (int l = 0; l < W; l++) {
         double dx = WA[l] - (kind == FIXED_SPHERE ? f[0] : WB[l]);
         double dy = WA[L + l] - (kind == FIXED_SPHERE ? f[1] : WB[L + l]);
         double dz = WA[2 * L + l] - (kind == FIXED_SPHERE ? f[2] : WB[2 * L + l]);
-        gap[l] = sqrt(dx * dx + dy * dy + dz * dz) - reach;
+        double t = reach + SLACK + rate[l] * steps[l];
+        gap[l] = dx * dx + dy * dy + dz * dz;
+        far &= (t <= 0.0) | (gap[l] > t * t * (1.0 + FAR_SQUARED));
       }
+      if (far) continue;
+      for (int l = 0; l < W; l++) gap[l] = sqrt(gap[l]) - reach;
     }
-    int far = 1;
-    for (int l = 0; l < W; l++) far &= gap[l] - SLACK >= rate[l] * steps[l];
-    if (far) continue;
     /* What the single-precision distances of this pair may be off by, per lane. */
     double ra = S->slot_radius[a], rb = S->slot_radius[b], radii = 2.0 * ra;
     if (isfinite(rb)) {
@@ -434,9 +436,15 @@ void lane_block(const Scene *S, Block *B) {
       const double *ib = S->slot_inner_size + 3 * b;
       radii += MAX(MAX(fabs(ib[0]), fabs(ib[1])), fabs(ib[2]));
     }
-    extent(W, S, a, wl, ea);
-    extent(W, S, b, wl, eb);
-    for (int l = 0; l < W; l++) rounding[l] = ROUNDING * (ea[l] + eb[l] + radii);
+    /* a moves; a static b's largest coordinate is the scene's */
+    const double *restrict EA = el + a * L, *restrict EB = el + b * L;
+    if (S->slot_static[b]) {
+      const double *o = S->slot_pos + 3 * b;
+      double eb = MAX(MAX(fabs(o[0]), fabs(o[1])), fabs(o[2]));
+      for (int l = 0; l < W; l++) rounding[l] = ROUNDING * (EA[l] + eb + radii);
+    } else {
+      for (int l = 0; l < W; l++) rounding[l] = ROUNDING * (EA[l] + EB[l] + radii);
+    }
     if (S->cover_start[a] == S->cover_start[a + 1] || S->slot_type[b] == UNBOUNDED) {
       for (int l = 0; l < W; l++) fine[l] = -INFINITY;
     } else {
@@ -459,6 +467,14 @@ void lane_block(const Scene *S, Block *B) {
     }
   }
   for (int l = 0; l < W; l++) steps[l] = contact[l] > 0.0 ? CONTACT : steps[l];
+}
+
+void lane_block(const Scene *S, Block *B) {
+  int64_t width = (B->width + 3) & ~(int64_t)3;  /* the loops' vectors: 4 lanes at least */
+  if (width >= L)
+    bound_lanes(S, B, L);  /* the common case: every loop of a constant length */
+  else
+    bound_lanes(S, B, (int)width);
 }
 
 /* ------------------------------------------------------------------ path searches

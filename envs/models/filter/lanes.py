@@ -248,8 +248,9 @@ class LaneScene:
         """One call of the kernel from Python (tests, benchmarks): ``start`` and ``change``
         (LANES, nq) full qpos rows, ``t`` and ``cap`` (LANES,), ``rates`` (LANES, pairs).
         Returns the steps (LANES,): per lane a free step, −1 (not proven free) or −2
-        (proven in contact); and every body's frame per lane: positions (nbody, 3, LANES)
-        and rotations (nbody, 3, 3, LANES)."""
+        (proven in contact); and the bodies' frames per lane: positions (nbody, 3, LANES)
+        and rotations (nbody, 3, 3, LANES), the kernel's for every moving body (a static
+        body's frame is the model's, in its rows only where a moving child needs it)."""
         if not self.address:
             raise ValueError("this filter has no lanes (LaneScene.address is 0)")
         nbody, npair, nq = self._sizes
@@ -284,7 +285,8 @@ def usable(scene: CompiledScene, cover_start: np.ndarray) -> bool:
 
 
 def work_size(scene: CompiledScene, n_covers: int) -> int:
-    """Doubles of a call's work array: body frames and slot centres in double precision,
-    then slot centres, slot frames and cover centres in single precision (two a double)."""
+    """Doubles of a call's work array: body frames, slot centres and their largest
+    coordinates in double precision, then slot centres, slot frames and cover centres in
+    single precision (two a double)."""
     singles = LANES * (12 * len(scene.slot_type) + 3 * n_covers)
-    return LANES * (12 * len(scene.body_parent) + 3 * len(scene.slot_type)) + (singles + 1) // 2
+    return LANES * (12 * len(scene.body_parent) + 4 * len(scene.slot_type)) + (singles + 1) // 2
