@@ -169,7 +169,9 @@ class IKBranchEnv(gym.Env):
     reset naming where it breaks. Moves between segments may reconfigure.
     ``singularity_margin`` and ``shoulder_margin`` (OPW and UR arms, process tasks)
     leave out of the ladder every branch that near a singular configuration
-    (``envs.kinematics.singularities``).
+    (``envs.kinematics.singularities``). A drawn task (the deburring pass) is drawn only
+    where the arm can follow it within both: its search takes the env's limit and only
+    configurations outside the margins.
     ``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")`` advances N
     copies of this env together in one process, each the single env seeded s + i bit for
     bit (``envs.vector_env.IKBranchVectorEnv``; its docstring is its manual).

@@ -260,13 +260,8 @@ class MovePricer:
     def _clear_of_singularities(self, candidates: np.ndarray, valid: np.ndarray) -> np.ndarray:
         """(N, K): valid branches outside the singularity margins; ``ValueError`` naming
         every waypoint left without one."""
-        margins = singularity_margins(self.arm, candidates)
-        clear = valid.copy()
+        clear = valid & self._outside_margins(candidates)
         angle, shoulder = self.singularity_margin, self.shoulder_margin
-        if angle is not None:
-            clear &= (margins.wrist >= angle) & (margins.elbow >= angle)
-        if shoulder is not None:
-            clear &= margins.shoulder >= shoulder
         stuck = np.flatnonzero(~clear.any(axis=-1))
         if len(stuck):
             limits = ", ".join(part for part in (
@@ -274,6 +269,18 @@ class MovePricer:
                 None if shoulder is None else f"shoulder {1000 * shoulder:g} mm") if part)
             raise ValueError(f"waypoints {stuck.tolist()}: every branch lies within the "
                              f"singularity margins ({limits})")
+        return clear
+
+    def _outside_margins(self, q: np.ndarray) -> np.ndarray:
+        """(…,) True where configuration ``q[…]`` (…, dof) lies outside the singularity
+        margins set (NaN rows: False)."""
+        margins = singularity_margins(self.arm, q)
+        clear = np.isfinite(q).all(axis=-1)
+        if self.singularity_margin is not None:
+            clear &= (margins.wrist >= self.singularity_margin) & (
+                margins.elbow >= self.singularity_margin)
+        if self.shoulder_margin is not None:
+            clear &= margins.shoulder >= self.shoulder_margin
         return clear
 
     # ------------------------------------------------------------------ collisions
@@ -350,6 +357,20 @@ class MovePricer:
             free[start : start + checked] = block[:checked]
             start += checked
         return free
+
+    def is_workable(self, q: np.ndarray, need: int | None = None) -> np.ndarray:
+        """(M,) True where configuration ``q[i]`` is collision-free and outside the
+        singularity margins: what a generator may build its task on, since the ladder
+        leaves every branch inside them out (a task drawn on such branches could leave a
+        waypoint without one). Without margins, :meth:`is_free` itself; ``need`` as there,
+        counted among the rows outside the margins."""
+        if self.singularity_margin is None and self.shoulder_margin is None:
+            return self.is_free(q, need)
+        q = _finite_rows(q, "configurations")
+        clear = self._outside_margins(q)
+        workable = np.zeros(len(q), dtype=bool)
+        workable[clear] = self.is_free(q[clear], need)
+        return workable
 
     def is_path_free(self, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
         """(M,) True where the path ``q0[i]`` → ``q1[i]`` is collision-free (one call)."""

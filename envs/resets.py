@@ -85,9 +85,13 @@ def _draw_tasks(envs: Sequence[IKBranchEnv], rngs: Sequence[np.random.Generator]
     chained = [i for i, env in enumerate(envs) if env._generator is random_reachable]
     for i, env in enumerate(envs):
         if i not in chained:
-            pricer = env.pricer
+            pricer, limit = env.pricer, env.pricer.max_joint_step
+            # A generator that keeps its segments followable keeps them so within the
+            # env's own limit ("auto", derived from the task drawn, cannot be known yet).
+            options = ({"max_step": float(limit)} if env._generator.step_limited
+                       and limit is not None and not isinstance(limit, str) else {})
             tasks[i] = env._generator(env._task_arm, rngs[i], env.n_waypoints,
-                                      pricer.is_free, pricer.is_path_free)
+                                      pricer.is_workable, pricer.is_path_free, **options)
     if chained:
         chains = np.array([
             random_chain_configurations(envs[i]._task_arm, rngs[i],

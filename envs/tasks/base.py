@@ -13,8 +13,10 @@ from ikbranch_gym.envs.kinematics import Arm
 
 class FreePredicate(Protocol):
     """Collision predicate the env hands to generators: (M, dof) -> (M,) bool, True =
-    free. ``need``: the caller uses only the first ``need`` free rows, so rows after the
-    ``need``-th free one may come back False without being checked (the env stops there)."""
+    free (and outside the singularity margins, where the env sets them: the ladder leaves
+    every branch inside them out, ``MovePricer.is_workable``). ``need``: the caller uses
+    only the first ``need`` free rows, so rows after the ``need``-th free one may come
+    back False without being checked (the env stops there)."""
 
     def __call__(self, q: np.ndarray, need: int | None = None) -> np.ndarray: ...
 
@@ -57,6 +59,9 @@ class TaskGenerator(Protocol):
     #: Its poses come from a finite set, so the same moves recur from task to task (a
     #: vector env then checks paths through each sub-env's path cache).
     finite_poses: bool
+    #: It draws a process segment only where the arm can follow it within a joint step
+    #: limit, which it takes as ``max_step`` (rad): the env passes its ``max_joint_step``.
+    step_limited: bool
 
     def __call__(
         self,
@@ -82,6 +87,7 @@ def task_generator(
     check_arm: Callable[[Arm, str], None] | None = None,
     fixed_waypoints: bool = False,
     finite_poses: bool = False,
+    step_limited: bool = False,
 ) -> Callable[[GeneratorFunction], TaskGenerator]:
     """Decorate a generator function with its default length, applicability check and
     the attributes of :class:`TaskGenerator`."""
@@ -93,6 +99,7 @@ def task_generator(
         generator.default_waypoints = default_waypoints
         generator.fixed_waypoints = fixed_waypoints
         generator.finite_poses = finite_poses
+        generator.step_limited = step_limited
         # The protocol spells ``check_arm`` as a method (``FileTask``'s is a staticmethod);
         # here it is an attribute holding a function, called the same way. mypy refuses to
         # assign to a method, hence the ignore.

@@ -13,10 +13,12 @@ Each waypoint is the TCP's pose: its z axis along the burr into the edge (down a
 the part), its x axis the direction of travel. The burr is round: ids on this task leave
 it free to turn about its axis (``tool_axis``), so the action chooses branch × spin.
 
-A task is kept only if the arm can do it: some chain of collision-free configurations,
-one per waypoint, in one closed-form branch, each step within ``MAX_STEP`` and every path
-between them free (from ``START`` too) — found by a depth-first search over the branches
-in the order of their travel. Otherwise the pass is drawn again (``ROUNDS`` times at most).
+A task is kept only if the arm can do it: some chain of collision-free configurations
+(outside the singularity margins, where the env sets them), one per waypoint, in one
+closed-form branch, each step within the env's ``max_joint_step`` (``MAX_STEP`` where it
+sets none) and every path between them free (from ``START`` too) — found by a depth-first
+search over the branches in the order of their travel. Otherwise the pass is drawn again
+(``ROUNDS`` times at most).
 """
 
 from __future__ import annotations
@@ -42,7 +44,8 @@ SPACING = 0.02
 CORNER_STEP = math.radians(15.0)
 #: The chamfer angle β: the burr's axis leans out of the part by β from the vertical.
 CHAMFER_RANGE = (math.radians(30.0), math.radians(50.0))
-#: The step limit inside the pass (rad): the ids' ``max_joint_step``, and the search's.
+#: The step limit inside the pass (rad): the ids' ``max_joint_step``, and the search's
+#: where the env sets none (an env with one searches with its own).
 MAX_STEP = math.radians(30.0)
 #: Where every pass starts: the KR 6 R700 above the fixture (A5 bent, tool down).
 START = (0.0, -1.5707963267948966, 1.5707963267948966, 0.0, 0.7853981633974483, 0.0)
@@ -163,20 +166,24 @@ def _require_cell(arm: Arm, scene: str) -> None:
         raise ValueError(f"the deburring task needs scene='deburring_cell', not {scene!r}")
 
 
-@task_generator(default_waypoints=12, check_arm=_require_cell)
+@task_generator(default_waypoints=12, check_arm=_require_cell, step_limited=True)
 def deburring(
     arm: Arm,
     rng: np.random.Generator,
     n_waypoints: int,
     is_free: FreePredicate,
     is_path_free: PathPredicate,
+    max_step: float = MAX_STEP,
 ) -> Task:
-    """One pass of the burr along the part's rim (module docstring), from ``START``."""
+    """One pass of the burr along the part's rim (module docstring), from ``START``, that
+    the arm can follow with steps of at most ``max_step`` (rad)."""
     start = np.array(START)
     for _ in range(ROUNDS):
         poses = _pass(rng, n_waypoints)
-        if followable_chain(arm, start, poses, is_free, is_path_free) is not None:
+        if followable_chain(arm, start, poses, is_free, is_path_free,
+                            limit=max_step) is not None:
             return Task(start=start, poses=poses,
                         segments=np.zeros(n_waypoints, dtype=np.int64))
     raise RuntimeError(f"{arm.name}: no deburring pass of {n_waypoints} waypoints the arm "
-                       f"can follow in {ROUNDS} draws")
+                       f"can follow with joint steps of at most {math.degrees(max_step):.4g}° "
+                       f"in {ROUNDS} draws")

@@ -21,6 +21,9 @@ class FileTask:
 
     fixed_waypoints = True
     finite_poses = True
+    #: The file's waypoints are the job: a segment the arm cannot follow within the
+    #: env's step limit is a ``ValueError`` naming where it breaks, not a redraw.
+    step_limited = False
 
     def __init__(self, waypoints: WaypointFile, poses: np.ndarray,
                  start: np.ndarray | None, segments: np.ndarray | None = None,

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from ikbranch_gym.envs.kinematics.singularities import singularity_margins
 from ikbranch_gym.envs.moves import REWARD_TERMS, TaskMoves
 from ikbranch_gym.envs.process import UNKNOWN, blocked
 from tests.envs.env_cases import IDS, make
@@ -134,6 +135,34 @@ def test_caches_answer_as_the_checker_and_keep_their_bounds():
         pricer.paths_collide(q0[0], np.full((2, arm.dof), np.nan))
     with pytest.raises(ValueError, match="finite"):
         pricer.is_free(np.full((1, arm.dof), np.inf))
+
+
+def test_generators_build_on_configurations_free_and_outside_the_margins():
+    """``is_workable``, the predicate the generators get: without margins the pricer's
+    ``is_free`` itself; with them, free rows whose wrist and elbow lie at least the margin
+    from singular (computed here from ``singularity_margins``), ``need`` counted among
+    those."""
+    margin = np.radians(40.0)
+    pricer = make("IKBranch/KukaKR6Deburring-v1", singularity_margin=margin).unwrapped.pricer
+    arm = pricer.arm
+    rng = np.random.default_rng(7)
+    q = rng.uniform(arm.joint_limits[:, 0], arm.joint_limits[:, 1], size=(400, arm.dof))
+    margins = singularity_margins(arm, q)
+    free = ~pricer.checker.collides(q)
+    plain = make("IKBranch/KukaKR6Deburring-v1").unwrapped.pricer
+    np.testing.assert_array_equal(plain.is_workable(q, need=5),
+                                  np.isin(np.arange(len(q)), np.flatnonzero(free)[:5]))
+    np.testing.assert_array_equal(plain.is_workable(q), free)
+    expected = free & (margins.wrist >= margin) & (margins.elbow >= margin)
+    assert 0 < expected.sum() < free.sum()  # the margins leave free rows out
+    for need in (1, 5, int(expected.sum())):
+        fresh = make("IKBranch/KukaKR6Deburring-v1",
+                     singularity_margin=margin).unwrapped.pricer
+        np.testing.assert_array_equal(np.flatnonzero(fresh.is_workable(q, need=need)),
+                                      np.flatnonzero(expected)[:need])
+    np.testing.assert_array_equal(pricer.is_workable(q), expected)
+    with pytest.raises(ValueError, match="finite"):
+        pricer.is_workable(np.full((1, arm.dof), np.nan))
 
 
 def test_a_task_met_again_takes_its_ladder_from_the_cache():

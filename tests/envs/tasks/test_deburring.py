@@ -13,6 +13,7 @@ import pytest
 import ikbranch_gym.envs  # noqa: F401
 from ikbranch_gym.agents import make_baseline
 from ikbranch_gym.envs.kinematics import make_arm
+from ikbranch_gym.envs.kinematics.singularities import singularity_margins
 from ikbranch_gym.envs.tasks.deburring import (
     CHAMFER_RANGE,
     CORNER_RADIUS,
@@ -192,3 +193,62 @@ def test_a_batched_reset_leaves_out_the_branches_near_a_singularity():
         np.testing.assert_array_equal(base.ladder.valid, own.valid)
         np.testing.assert_array_equal(base.ladder.candidates, own.candidates)
     assert left_out > 0
+
+
+def test_a_pass_drawn_under_wide_singularity_margins_keeps_a_branch_outside_them():
+    """At 40° the margins leave most drawn passes with a waypoint whose every branch lies
+    inside them; the generator builds its chain on branches outside them only, so every
+    reset keeps such a branch at each waypoint and the DP oracle still finishes the pass
+    in one configuration."""
+    margin = math.radians(40.0)
+    env = gym.make(ID, singularity_margin=margin)
+    base = env.unwrapped
+    oracle = make_baseline("dp_oracle", env)
+    for seed in range(8):
+        obs, info = env.reset(seed=seed)
+        valid = base.ladder.valid
+        assert valid.any(axis=1).all()
+        margins = singularity_margins(base.arm, base.ladder.candidates[valid])
+        assert (margins.wrist >= margin).all() and (margins.elbow >= margin).all()
+        if seed < 2:
+            done, actions = False, []
+            while not done:
+                action = int(oracle.predict(obs, action_masks=info["action_mask"])[0])
+                actions.append(action)
+                obs, _, terminated, truncated, info = env.step(action)
+                done = terminated or truncated
+            assert info["is_success"]
+            assert len(set(base.arm.branch_closed_form[actions].tolist())) == 1
+
+
+@pytest.mark.parametrize("degrees", [20.0, 11.5])
+def test_a_pass_is_drawn_followable_within_the_envs_own_step_limit(degrees):
+    """An env whose step limit is tighter than the ids' 30° draws passes the arm can follow
+    within it (searched at 30°, half the resets at 20° had found no such chain), and the
+    DP oracle follows one in one configuration with every inside step within it."""
+    limit = math.radians(degrees)
+    env = gym.make(ID, max_joint_step=limit)
+    base = env.unwrapped
+    revolute = np.asarray(base.arm.revolute_mask)
+    for seed in range(6):
+        obs, info = env.reset(seed=seed)
+        assert base.ladder.valid.any(axis=1).all()
+    oracle = make_baseline("dp_oracle", env)
+    obs, info = env.reset(seed=0)
+    done, configurations = False, []
+    while not done:
+        action = int(oracle.predict(obs, action_masks=info["action_mask"])[0])
+        obs, _, terminated, truncated, info = env.step(action)
+        configurations.append(base.ladder.candidates[len(configurations), action])
+        done = terminated or truncated
+    assert info["is_success"]
+    steps = np.abs(np.diff(np.array(configurations), axis=0))[:, revolute]
+    assert steps.max() <= limit
+
+
+def test_a_step_limit_no_pass_can_keep_is_refused_with_the_limit_named():
+    """5.7°: none of the 200 passes drawn keeps within it (a corner sample turns the burr
+    by 15°); the error names the limit."""
+    env = gym.make(ID, max_joint_step=0.1)
+    with pytest.raises(RuntimeError, match=r"joint steps of at most 5\.73°"):
+        env.reset(seed=0)
