@@ -24,7 +24,8 @@ limits and travel to [0, 1] by the largest possible travel:
     free branch of the waypoint before). Travel of and to invalid branches is 1.
 ``"ladder"`` (size O(K²): the v0/v1 ids)
     As compact without ``travel_out`` and ``travel_in``; instead slots h ≥ 1 carry
-    ``travel`` (K × K) from every candidate of the waypoint before.
+    ``travel`` (K × K) from every candidate of the waypoint before (1 for invalid
+    branches and for moves a process segment blocks, as no move).
 
 Everything a task fixes is assembled once per task (:meth:`ObservationBuilder.templates`);
 each step fills in the configuration and slot 0's travel, path collisions and (compact)
@@ -41,7 +42,7 @@ import numpy as np
 from ikbranch_gym.envs.jit import njit
 from ikbranch_gym.envs.kinematics import Arm
 from ikbranch_gym.envs.moves import TEMPLATE_CACHE_BYTES, TEMPLATE_SIGHTINGS, TaskMoves
-from ikbranch_gym.envs.process import move_blocked
+from ikbranch_gym.envs.process import blocked, move_blocked
 
 #: The observation layouts (module docstring).
 OBSERVATIONS = ("compact", "ladder")
@@ -449,6 +450,10 @@ class ObservationBuilder:
             travel[both] = ladder.pricer.cost.travel(
                 ladder.candidates[:-1, :, None, :], ladder.candidates[1:, None, :, :]
             )[both] / self.travel_scale
+            for i in np.flatnonzero(ladder.inside[1:]):  # moves into waypoint i + 1
+                travel[i][blocked(ladder.candidates[i], ladder.configuration,
+                                  ladder.candidates[i + 1], ladder.configuration,
+                                  ladder.limit, ladder.revolute)] = 1.0
             travel = travel.reshape(n - 1, k * k)
         for h in range(min(self.lookahead, n - 1) + 1):
             start = self.layout[f"slot{h}/present"][0]

@@ -405,3 +405,27 @@ def test_compiled_compact_templates_are_the_numpy_assembly(env_id, lookahead):
         assert assembled.dtype == np.float32
         np.testing.assert_array_equal(assembled.view(np.uint32), expected.view(np.uint32))
         np.testing.assert_array_equal(base._episode.templates[0], assembled)
+
+
+def test_the_ladder_layouts_travel_reads_a_move_a_segment_blocks_as_no_move():
+    """Inside a deburring pass (``max_joint_step`` 30°) the ladder layout's K × K travel
+    reads 1 for a move that changes the closed-form branch or steps a joint by more than
+    the limit (here brute force), as for an invalid branch, and the priced travel for
+    every other move between valid branches."""
+    env = gym.make("IKBranch/KukaKR6Deburring-v1", observation="ladder", lookahead=1)
+    base = env.unwrapped
+    obs, _ = env.reset(seed=0)
+    ladder, layout, k = base.ladder, base.observation_layout, base.arm.n_branches
+    i = base.index + 1  # slot 1's waypoint: the move into it lies inside the pass
+    assert ladder.inside[i]
+    q0, q1 = ladder.candidates[i - 1], ladder.candidates[i]
+    closed = np.asarray(base.arm.branch_closed_form)
+    revolute = np.asarray(base.arm.revolute_mask)
+    steps = np.abs(q1[None, :, :] - q0[:, None, :])[..., revolute].max(axis=-1)
+    reconfigures = (closed[:, None] != closed[None, :]) | (steps > ladder.limit)
+    both = ladder.valid[i - 1][:, None] & ladder.valid[i][None, :]
+    assert reconfigures[both].any() and (~reconfigures)[both].any()
+    travel = base.cost.travel(q0[:, None], q1[None]) / base.pricer.travel_scale
+    expected = np.where(both & ~reconfigures, np.minimum(travel, 1.0), 1.0)
+    np.testing.assert_allclose(obs[slice(*layout["slot1/travel"])].reshape(k, k),
+                               expected.astype(np.float32), rtol=1e-6)
