@@ -361,7 +361,7 @@ class ObservationBuilder:
         #: (read-only), cleared when it would grow past ``TEMPLATE_CACHE_BYTES``; only
         #: tasks seen before (``_sighted``: hashes of keys) are kept, so that tasks which
         #: never repeat (random waypoints) fill no memory.
-        self._cache: dict[tuple[bytes, bytes, bytes], np.ndarray] = {}
+        self._cache: dict[tuple[bytes, bytes, bytes, bytes, float], np.ndarray] = {}
         self._cached_bytes = 0
         self._sighted: set[int] = set()
 
@@ -394,10 +394,10 @@ class ObservationBuilder:
         """Everything of the observation a task fixes, (N + 1, size) read-only: row i is
         the observation at ``index == i`` (i = 0 … N) but for ``q`` and slot 0's
         ``travel``, ``path_collision`` and onward free travel, which each step fills in
-        (``envs.stepping``). They depend on the task's candidates, their
-        validity and endpoint hits only, so a task met again (a finite pose set) takes
-        them from the cache."""
-        key = ladder.fingerprint
+        (``envs.stepping``). They depend on the task's candidates, their validity and
+        endpoint hits, and on which moves a process segment holds to which step limit
+        only, so a task met again (a finite pose set) takes them from the cache."""
+        key = (*ladder.fingerprint, ladder.inside.tobytes(), float(ladder.limit))
         templates = self._cache.get(key)
         if templates is None:
             templates = self._assemble(ladder)

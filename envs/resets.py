@@ -88,7 +88,8 @@ def _draw_tasks(envs: Sequence[IKBranchEnv], rngs: Sequence[np.random.Generator]
             pricer, limit = env.pricer, env.pricer.max_joint_step
             # A generator that keeps its segments followable keeps them so within the
             # env's own limit ("auto", derived from the task drawn, cannot be known yet).
-            options = ({"max_step": float(limit)} if env._generator.step_limited
+            options = ({"max_step": float(limit)}
+                       if getattr(env._generator, "step_limited", False)
                        and limit is not None and not isinstance(limit, str) else {})
             tasks[i] = env._generator(env._task_arm, rngs[i], env.n_waypoints,
                                       pricer.is_workable, pricer.is_path_free, **options)

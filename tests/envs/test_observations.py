@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import ikbranch_gym.envs as envs
+from ikbranch_gym.envs.moves import TaskMoves
 from ikbranch_gym.envs.observations import OBSERVATIONS
 from tests.envs.env_cases import IDS, least_onward_travel, raw_onward, same_info
 
@@ -429,3 +430,22 @@ def test_the_ladder_layouts_travel_reads_a_move_a_segment_blocks_as_no_move():
     expected = np.where(both & ~reconfigures, np.minimum(travel, 1.0), 1.0)
     np.testing.assert_allclose(obs[slice(*layout["slot1/travel"])].reshape(k, k),
                                expected.astype(np.float32), rtol=1e-6)
+
+
+def test_templates_of_equal_arrays_under_other_continuity_are_not_shared():
+    """The templates' cache key holds the process continuity too: the same arrays without
+    a segment (every move allowed) read other travel summaries than the deburring pass's,
+    and take their own templates, not the pass's from the cache."""
+    env = gym.make("IKBranch/KukaKR6Deburring-v1")
+    base = env.unwrapped
+    env.reset(seed=0)
+    ladder, builder = base.ladder, base._observations
+    assert ladder.inside.any()
+    restricted = builder.templates(ladder)
+    assert builder.templates(ladder) is restricted  # met twice: in the cache
+    free = TaskMoves(base.pricer, ladder.task, ladder.candidates, ladder.valid,
+                     ladder.endpoint_collision, None)
+    assert free.fingerprint == ladder.fingerprint
+    unrestricted = builder.templates(free)
+    np.testing.assert_array_equal(unrestricted, builder._assemble(free))
+    assert not np.array_equal(unrestricted, restricted)

@@ -411,9 +411,10 @@ INLINE void bound_lanes(const Scene *S, Block *B, const int W) {
       for (int l = 0; l < W; l++) far &= gap[l] - SLACK >= rate[l] * steps[l];
       if (far) continue;
     } else {
-      /* Squared distances first: a lane is far where d^2 > (reach + SLACK + rate step)^2
-       * (1 + FAR_SQUARED), which implies the test on the distance below (FAR_SQUARED is
-       * far above the rounding of either), so only the pairs that go on take a root. */
+      /* Squared distances: a lane is far where d^2 > (reach + SLACK + rate step)^2
+       * (1 + FAR_SQUARED), which implies d - reach - SLACK >= rate step (FAR_SQUARED is
+       * far above the rounding of either side), so only the pairs that go on take a
+       * root. */
       int far = 1;
       for (int l = 0; l < W; l++) {
         double dx = WA[l] - (kind == FIXED_SPHERE ? f[0] : WB[l]);
