@@ -357,10 +357,10 @@ class ObservationBuilder:
               self.layout.get(f"slot{h}/travel_in", (-1, -1))[0]]
              for h in range(self.lookahead + 1)] if kind == "compact" else [[0, 0, 0]],
             dtype=np.int64)
-        #: (candidates, valid, endpoint_collision) bytes of a task -> its templates
-        #: (read-only), cleared when it would grow past ``TEMPLATE_CACHE_BYTES``; only
-        #: tasks seen before (``_sighted``: hashes of keys) are kept, so that tasks which
-        #: never repeat (random waypoints) fill no memory.
+        #: (candidates, valid, endpoint_collision, inside) bytes and the step limit of a
+        #: task -> its templates (read-only), cleared when it would grow past
+        #: ``TEMPLATE_CACHE_BYTES``; only tasks seen before (``_sighted``: hashes of keys)
+        #: are kept, so that tasks which never repeat (random waypoints) fill no memory.
         self._cache: dict[tuple[bytes, bytes, bytes, bytes, float], np.ndarray] = {}
         self._cached_bytes = 0
         self._sighted: set[int] = set()
