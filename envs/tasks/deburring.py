@@ -133,6 +133,8 @@ def followable_chain(arm: Arm, start: np.ndarray, poses: np.ndarray, is_free: Fr
     rows = np.flatnonzero(valid.ravel())
     if len(rows):
         free.ravel()[rows] = is_free(candidates.reshape(-1, arm.dof)[rows])
+    if not free.any(axis=1).all():  # a waypoint no chain can reach: no search needed
+        return None
     checks = [0]
 
     def extend(i: int, q: np.ndarray, configuration: int, chain: list) -> list | None:

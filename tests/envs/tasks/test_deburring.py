@@ -115,6 +115,18 @@ def test_a_chain_is_found_only_where_the_arm_can_follow():
                             limit=math.radians(0.01)) is None
     assert followable_chain(arm, start, poses, lambda q, need=None: np.zeros(len(q), bool),
                             all_paths_free) is None
+    # A waypoint with no free candidate ends the search before any path is checked.
+    last = arm.ik(poses[-1])[0]
+    last = last[np.isfinite(last).all(axis=1)]
+
+    def free_but_the_last_waypoint(q, need=None):
+        return ~(np.abs(q[:, None, :] - last[None]).max(axis=2) == 0.0).any(axis=1)
+
+    def no_path_check(q0, q1):
+        raise AssertionError("a path was checked")
+
+    assert followable_chain(arm, start, poses, free_but_the_last_waypoint,
+                            no_path_check) is None
 
 
 def test_the_deburring_id_plans_the_pass_in_one_configuration_with_the_spin():
