@@ -83,7 +83,7 @@ class _Cache:
 class _Ladder:
     """What a task's ladder holds beyond the task: its arrays (shared by every ladder of
     the task, written by none), its continuity (None without) and its fingerprint (the
-    arrays' bytes: what the observation templates are keyed by)."""
+    arrays' bytes: with the continuity, what the observation templates are keyed by)."""
 
     candidates: np.ndarray
     valid: np.ndarray
@@ -672,8 +672,9 @@ class TaskMoves:
 
     @property
     def fingerprint(self) -> tuple[bytes, bytes, bytes]:
-        """The bytes of ``candidates``, ``valid`` and ``endpoint_collision``: equal for
-        ladders whose observation templates are equal (their cache's key)."""
+        """The bytes of ``candidates``, ``valid`` and ``endpoint_collision``: with
+        ``inside`` and ``limit``, what the observation templates depend on (their cache's
+        key)."""
         if self._fingerprint is None:
             self._fingerprint = (self.candidates.tobytes(), self.valid.tobytes(),
                                  self.endpoint_collision.tobytes())
