@@ -129,6 +129,17 @@ def test_a_chain_is_found_only_where_the_arm_can_follow():
                             no_path_check) is None
 
 
+def _oracle_pass(env, oracle, obs, info) -> tuple[list[int], dict]:
+    """The actions of one episode the DP oracle plays from ``obs``, ``info``; its last info."""
+    done, actions = False, []
+    while not done:
+        action = int(oracle.predict(obs, action_masks=info["action_mask"])[0])
+        actions.append(action)
+        obs, _, terminated, truncated, info = env.step(action)
+        done = terminated or truncated
+    return actions, info
+
+
 def test_the_deburring_id_plans_the_pass_in_one_configuration_with_the_spin():
     """The DP oracle finishes every pass without a collision and keeps one configuration
     within 30° steps; the burr's spin is part of what it chooses."""
@@ -137,13 +148,7 @@ def test_the_deburring_id_plans_the_pass_in_one_configuration_with_the_spin():
     oracle = make_baseline("dp_oracle", env)
     spins = set()
     for seed in range(3):
-        obs, info = env.reset(seed=seed)
-        done, actions = False, []
-        while not done:
-            action = int(oracle.predict(obs, action_masks=info["action_mask"])[0])
-            actions.append(action)
-            obs, _, terminated, truncated, info = env.step(action)
-            done = terminated or truncated
+        actions, info = _oracle_pass(env, oracle, *env.reset(seed=seed))
         assert info["is_success"]
         closed = base.arm.branch_closed_form[actions]
         assert len(set(closed.tolist())) == 1
@@ -223,12 +228,7 @@ def test_a_pass_drawn_under_wide_singularity_margins_keeps_a_branch_outside_them
         margins = singularity_margins(base.arm, base.ladder.candidates[valid])
         assert (margins.wrist >= margin).all() and (margins.elbow >= margin).all()
         if seed < 2:
-            done, actions = False, []
-            while not done:
-                action = int(oracle.predict(obs, action_masks=info["action_mask"])[0])
-                actions.append(action)
-                obs, _, terminated, truncated, info = env.step(action)
-                done = terminated or truncated
+            actions, info = _oracle_pass(env, oracle, obs, info)
             assert info["is_success"]
             assert len(set(base.arm.branch_closed_form[actions].tolist())) == 1
 
@@ -243,18 +243,13 @@ def test_a_pass_is_drawn_followable_within_the_envs_own_step_limit(degrees):
     base = env.unwrapped
     revolute = np.asarray(base.arm.revolute_mask)
     for seed in range(6):
-        obs, info = env.reset(seed=seed)
+        env.reset(seed=seed)
         assert base.ladder.valid.any(axis=1).all()
     oracle = make_baseline("dp_oracle", env)
-    obs, info = env.reset(seed=0)
-    done, configurations = False, []
-    while not done:
-        action = int(oracle.predict(obs, action_masks=info["action_mask"])[0])
-        obs, _, terminated, truncated, info = env.step(action)
-        configurations.append(base.ladder.candidates[len(configurations), action])
-        done = terminated or truncated
+    actions, info = _oracle_pass(env, oracle, *env.reset(seed=0))
     assert info["is_success"]
-    steps = np.abs(np.diff(np.array(configurations), axis=0))[:, revolute]
+    configurations = base.ladder.candidates[np.arange(len(actions)), actions]
+    steps = np.abs(np.diff(configurations, axis=0))[:, revolute]
     assert steps.max() <= limit
 
 
