@@ -13,10 +13,11 @@ called it and goes on from there. A configuration check of two or more rows fill
 lanes with rows (``kernels._lane_configurations``). The lanes prove only what the scalar
 kernels would, so every verdict and first colliding sample stays MuJoCo's.
 
-The lanes' bounds hold each moving geom's container in spheres on its axis
-(:func:`covers`): a cover sphere's centre measured to the partner's container, less its
-radius, bounds the pair's distance from below; points on the moving geom's inner segment
-(:func:`witness_points`), measured to the partner's inner shape, bound it from above.
+The lanes' bounds hold each moving geom's container in spheres: on its axis, or about
+the cells of a box (:func:`covers`): a cover sphere's centre measured to the partner's
+container, less its radius, bounds the pair's distance from below; points on the moving
+geom's inner segment (:func:`witness_points`), measured to the partner's inner shape,
+bound it from above.
 They are looser than the scalar kernel's (which measure the containers themselves and
 use each sample's local speeds), and much
 cheaper: structure-of-arrays, every inner loop one run of SIMD instructions over the
@@ -26,8 +27,8 @@ The C source is compiled on first use with the system's C compiler (``cc``, or `
 into the kernels' cache directory (``envs.jit``), keyed by a hash of the source, the
 flags and the processor's features, as numba caches its kernels; ``make`` does it ahead.
 Without a compiler the filter runs its scalar kernels only (same verdicts, slower), and
-says so once. A model whose moving geoms the covers cannot hold (a box, a mesh, a moving
-plane) runs the scalar kernels too.
+says so once. A model whose moving geoms the covers cannot hold (a moving plane, a geom of
+an unknown kind) runs the scalar kernels too.
 """
 
 from __future__ import annotations
@@ -47,7 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from ...jit import cache_directory
-from .layout import CAPSULE, CYLINDER, SPHERE, CompiledScene
+from .layout import BOX, CAPSULE, CYLINDER, SPHERE, CompiledScene
 
 #: Samples per call (the C kernel's ``L``).
 LANES = 16
@@ -62,6 +63,10 @@ P_OWNER, P_LO, P_HI, P_MID = (P_PATH + k * LANES for k in (5, 7, 8, 9))
 #: A cover sphere's centres lie at most this fraction of the geom's radius apart (half
 #: spacing): a capsule or cylinder of radius r is held by spheres of radius ≤ 1.118·r.
 COVER_SPACING = 0.5
+#: The most spheres that hold a box (:func:`box_cells`): its covers are looser than a
+#: capsule's (a cell's sphere reaches past the faces), denser ones cost more per sample
+#: than the near misses they would prove (docs/models.md, "Box covers").
+BOX_COVERS = 16
 
 _SOURCE = Path(__file__).with_name("lanes.c")
 #: ``-fno-math-errno``: ``sqrt`` is one instruction. ``-fno-trapping-math``: GCC otherwise
@@ -74,34 +79,74 @@ _FLAGS = ("-O3", "-march=native", "-fno-math-errno", "-fno-trapping-math", "-sha
 def covers(scene: CompiledScene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Spheres that hold each moving slot's container, in its body's frame: (start (S+1,),
     centres (C, 3), radii (C,)); slot s owns rows ``start[s]:start[s + 1]``, none for a
-    static slot or one whose kind has no cover here (a box, a mesh's box, unbounded).
+    static slot or one whose kind has no cover here (a moving plane, an unbounded geom).
 
     A capsule of radius r and half-length h: m = ⌈h/(``COVER_SPACING``·r)⌉ spheres of
     radius √(r² + (h/m)²) centred at −h + (2i + 1)·h/m on its axis hold its cylinder part
     (each the slab of height 2h/m around its centre), and a sphere of radius r at each end
-    its caps; a cylinder the same without the caps; a sphere itself. The radii carry a
-    relative 1e-12 (and 1e-12 m) for rounding."""
+    its caps; a cylinder the same without the caps; a sphere itself; a box (a mesh's box)
+    the spheres about the cells of :func:`box_cells`, each through its cell's corners.
+    Every centre lies within the slot's bounding radius of its centre and every radius is
+    at most that radius, as the kernel's rounding allowance assumes (docs/models.md,
+    "Single precision"). The radii carry a relative 1e-12 (and 1e-12 m) for rounding."""
     start, centres, radii = [0], [], []
     for s in range(len(scene.slot_type)):
-        rows: list[tuple[float, float]] = []  # (offset along the axis, radius)
+        rows: list[tuple[tuple[float, float, float], float]] = []  # (centre, radius)
         kind, size = int(scene.slot_type[s]), scene.slot_size[0, s]
         if not scene.slot_static[s]:
             r, h = float(size[0]), float(size[1])
             if kind == SPHERE:
-                rows = [(0.0, r)]
+                rows = [((0.0, 0.0, 0.0), r)]
             elif kind in (CAPSULE, CYLINDER):
                 m = max(1, math.ceil(h / (COVER_SPACING * r))) if h > 0.0 else 1
                 half = h / m
-                rows = [(-h + half * (2 * i + 1), math.hypot(r, half)) for i in range(m)]
+                rows = [((0.0, 0.0, -h + half * (2 * i + 1)), math.hypot(r, half))
+                        for i in range(m)]
                 if kind == CAPSULE:
-                    rows += [(-h, r), (h, r)]
+                    rows += [((0.0, 0.0, -h), r), ((0.0, 0.0, h), r)]
+            elif kind == BOX:
+                rows = box_cells(size, float(scene.slot_radius[0, s]))
         pos, rot = scene.slot_pos[0, s], scene.slot_rot[0, s]
         for offset, radius in rows:
-            centres.append(pos + rot[:, 2] * offset)
+            centres.append(pos + rot @ np.array(offset))
             radii.append(radius * (1.0 + 1e-12) + 1e-12)
         start.append(len(centres))
     return (np.array(start, dtype=np.int64), np.array(centres, dtype=np.float64).reshape(-1, 3),
             np.array(radii, dtype=np.float64))
+
+
+def box_cells(half: np.ndarray, bounding: float = math.inf
+              ) -> list[tuple[tuple[float, float, float], float]]:
+    """The cover spheres of a box of half-sizes ``half`` (its frame): the box cut into
+    n₀ × n₁ × n₂ equal cells, at most ``BOX_COVERS`` of them, each held by the sphere
+    about its centre through its corners. Of the cuts whose centres and radii stay within
+    ``bounding`` of the box's centre, the one whose spheres reach least beyond the box:
+    a sphere of radius ρ = |c| about a cell of half-sizes c reaches ρ − min(c) beyond a
+    face it lies on; ties go to fewer cells. Where no cut stays within (an ellipsoid's
+    box, whose bounding radius is the ellipsoid's), the sphere of radius ``bounding``
+    about the centre."""
+    sizes = [float(x) for x in half]
+    best: tuple[tuple[float, int], tuple[int, int, int]] | None = None
+    for n0 in range(1, BOX_COVERS + 1):
+        for n1 in range(1, BOX_COVERS // n0 + 1):
+            for n2 in range(1, BOX_COVERS // (n0 * n1) + 1):
+                cuts = (n0, n1, n2)
+                cell = [x / n for x, n in zip(sizes, cuts, strict=True)]
+                radius = math.sqrt(sum(c * c for c in cell))
+                corner = math.sqrt(sum((x - c) ** 2 for x, c in zip(sizes, cell, strict=True)))
+                if radius > bounding or corner > bounding:
+                    continue
+                key = (radius - min(cell), n0 * n1 * n2)
+                if best is None or key < best[0]:
+                    best = (key, cuts)
+    if best is None:
+        return [((0.0, 0.0, 0.0), bounding)]
+    cuts = best[1]
+    cell = [x / n for x, n in zip(sizes, cuts, strict=True)]
+    radius = math.sqrt(sum(c * c for c in cell))
+    axes = [[-x + c * (2 * i + 1) for i in range(n)]
+            for x, c, n in zip(sizes, cell, cuts, strict=True)]
+    return [((x, y, z), radius) for x in axes[0] for y in axes[1] for z in axes[2]]
 
 
 def witness_points(scene: CompiledScene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

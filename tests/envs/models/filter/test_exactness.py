@@ -16,6 +16,7 @@ from ikbranch_gym.envs.kinematics import make_arm
 from ikbranch_gym.envs.models import CollisionChecker, arm_spec, build_model
 from ikbranch_gym.envs.models.builders import add_part, add_static_body, compile_spec
 from ikbranch_gym.envs.models.filter import COUNTERS
+from ikbranch_gym.envs.models.filter.kernels import LANE_FUNCTION, LANE_PATHS
 from tests.envs.models.conftest import scene_cases
 
 #: Paths per arm × scene in the exactness tests (half short moves, half across the range).
@@ -25,6 +26,14 @@ PATHS = 2000
 def _checker(arm_name: str, scene: str, backend: str, **kwargs) -> CollisionChecker:
     arm = make_arm(arm_name)
     return CollisionChecker(build_model(arm_name, scene, **kwargs), dof=arm.dof, backend=backend)
+
+
+def _without_lanes(checker: CollisionChecker) -> CollisionChecker:
+    """``checker`` with its filter's lanes switched off: the scalar kernel alone, as on a
+    machine without a C compiler."""
+    checker._filter._exact[0, LANE_FUNCTION] = 0
+    checker._filter._exact[0, LANE_PATHS] = 0
+    return checker
 
 
 def _paths(arm, rng, count, reach=0.25):
@@ -60,6 +69,25 @@ def test_path_verdicts_and_first_samples_equal_the_loop(arm_name, scene):
     np.testing.assert_array_equal(compiled.paths_collide(q0[0], q1[:50]), from_one)
 
 
+@pytest.mark.parametrize("arm_name", ["anthropomorphic", "cartesian", "ur5e"])
+def test_without_lanes_the_scalar_kernel_alone_answers_as_the_loop(arm_name):
+    # Every arm has lanes; a machine without a C compiler has none: the same answers.
+    arm = make_arm(arm_name)
+    model = build_model(arm_name, "random_clutter")
+    compiled = _without_lanes(CollisionChecker(model, dof=arm.dof, backend="compiled"))
+    loop = CollisionChecker(model, dof=arm.dof, backend="loop")
+    rng = np.random.default_rng(23)
+    q0, q1 = _paths(arm, rng, PATHS // 2, reach=0.25 if arm_name != "ur5e" else 0.02)
+    collides, first = loop.check_paths(q0, q1)
+    fast_collides, fast_first = compiled.check_paths(q0, q1)
+    np.testing.assert_array_equal(fast_collides, collides)
+    np.testing.assert_array_equal(fast_first, first)
+    np.testing.assert_array_equal(compiled.paths_collide(q0, q1), collides)
+    np.testing.assert_array_equal(compiled.n_contacts(q0), loop.n_contacts(q0))
+    lanes = compiled._filter.counters[COUNTERS.index("lane samples")]
+    assert lanes == 0 and 0.05 < collides.mean() < 0.95
+
+
 @pytest.mark.parametrize(("arm_name", "scene"), scene_cases())
 def test_configuration_counts_and_verdicts_equal_the_loop(arm_name, scene):
     # Counts are always MuJoCo's own; verdicts may come from inner shapes (witnesses)
@@ -92,6 +120,7 @@ def test_first_free_rows_are_the_full_checks_first_free_rows(backend):
     for need in (1, 2, 5, len(free), len(free) + 3):
         np.testing.assert_array_equal(checker.first_free_rows(q, need), free[:need])
     if backend == "compiled":  # the rows after the need-th free one are not checked
+        _without_lanes(checker)  # (the lanes bound four rows a wanted one at once)
         before = checker._filter.counters[0]
         checker.first_free_rows(q, 1)
         assert checker._filter.counters[0] - before == free[0] + 1
@@ -184,7 +213,7 @@ def test_mujoco_checks_that_find_no_contact_are_counted():
     spent = dict(zip(COUNTERS, counters - before, strict=True))
     checks, alarms, witnessed = spent["mujoco"], spent["mujoco found free"], spent["witnessed"]
     assert colliding.any() and alarms > 0 and witnessed > 0
-    assert checks - alarms + witnessed == colliding.sum()
+    assert checks - alarms + witnessed + spent["lane contacts"] == colliding.sum()
     q0, q1 = _paths(arm, np.random.default_rng(26), 400)
     before = counters.copy()
     hits = checker.paths_collide(q0, q1)
@@ -194,8 +223,8 @@ def test_mujoco_checks_that_find_no_contact_are_counted():
     assert checks - alarms + witnessed + spent["lane contacts"] == hits.sum()
 
 
-@pytest.mark.parametrize("arm_name", ["anthropomorphic", "ur5e"])  # without lanes, with
-def test_a_stack_checks_every_scene_as_its_own_filter(arm_name):
+@pytest.mark.parametrize(("arm_name", "lanes"), [("anthropomorphic", False), ("ur5e", True)])
+def test_a_stack_checks_every_scene_as_its_own_filter(arm_name, lanes):
     # Three clutters of one model in one stack: each row and path, tagged with its scene,
     # gets the verdict and first sample of that scene's own checker; a clutter laid in one
     # member afterwards is what the stack checks too.
@@ -207,6 +236,8 @@ def test_a_stack_checks_every_scene_as_its_own_filter(arm_name):
     for _ in range(3):
         model = build_model(arm_name, "random_clutter", seed=None)
         checker = CollisionChecker(model, dof=arm.dof)
+        if not lanes:
+            _without_lanes(checker)
         clutter = ClutterSlots(checker.model, CLUTTER_SLOTS)
         checkers.append(checker)
         slots.append(clutter)

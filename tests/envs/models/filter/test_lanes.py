@@ -16,11 +16,13 @@ from ikbranch_gym.envs.models.filter.kernels import (
     LANE_FUNCTION,
     bound_configurations,
 )
-from ikbranch_gym.envs.models.filter.lanes import LANES, library
-from ikbranch_gym.envs.models.filter.layout import CYLINDER, SPHERE
+from ikbranch_gym.envs.models.filter.lanes import BOX_COVERS, LANES, box_cells, library, usable
+from ikbranch_gym.envs.models.filter.layout import BOX, CYLINDER, SPHERE
 
-#: Arms whose moving geoms the covers hold (capsules, cylinders), each in its clutter.
-ARMS = ["ur5e", "kuka_kr6_r700", "abb_irb2600", "opw"]
+#: Arms in their clutter: capsules and cylinders; with boxes (housings, prismatic links,
+#: grippers) among them.
+BOX_ARMS = ("anthropomorphic", "cartesian", "spherical")
+ARMS = ["ur5e", "kuka_kr6_r700", "abb_irb2600", "opw", *BOX_ARMS]
 
 
 def _checker(arm_name: str, backend: str = "compiled") -> CollisionChecker:
@@ -29,9 +31,17 @@ def _checker(arm_name: str, backend: str = "compiled") -> CollisionChecker:
 
 
 def _surface(kind: int, size: np.ndarray, rng: np.random.Generator, count: int) -> np.ndarray:
-    """Points on the surface of a container (its frame): the farthest from its axis."""
+    """Points on the surface of a container (its frame): the farthest from its axis; a
+    box's faces, edges and corners."""
     r, h = size[0], size[1]
     angle = rng.uniform(0.0, 2.0 * np.pi, count)
+    if kind == BOX:
+        face = rng.uniform(-1.0, 1.0, (count, 3))
+        face[np.arange(count), rng.integers(0, 3, count)] = rng.choice([-1.0, 1.0], count)
+        edge = rng.choice([-1.0, 1.0], (count, 3))
+        edge[np.arange(count), rng.integers(0, 3, count)] = rng.uniform(-1.0, 1.0, count)
+        corner = rng.choice([-1.0, 1.0], (count, 3))
+        return np.vstack([face, edge, corner]) * size
     if kind == SPHERE:
         v = rng.normal(size=(count, 3))
         return r * v / np.linalg.norm(v, axis=1, keepdims=True)
@@ -54,7 +64,7 @@ def test_the_covers_hold_every_moving_container(arm_name):
     scene = _checker(arm_name)._filter.scene
     start, centres, radii = _checker(arm_name)._filter.lanes.covers
     rng = np.random.default_rng(1)
-    held = 0
+    held = boxes = 0
     for s in np.flatnonzero(~scene.slot_static):
         kind, size = int(scene.slot_type[s]), scene.slot_size[0, s]
         if start[s] == start[s + 1]:
@@ -64,10 +74,36 @@ def test_the_covers_hold_every_moving_container(arm_name):
         mine = slice(start[s], start[s + 1])
         gaps = np.linalg.norm(body[:, None] - centres[None, mine], axis=2) - radii[None, mine]
         assert np.all(gaps.min(axis=1) <= 0.0), f"slot {s}: a point outside every cover"
-        # ... and not by much: a cover sphere's radius is at most √1.25 times the geom's.
-        assert radii[mine].max() <= 1.12 * size[0] + 1e-9
+        # ... and not by much: a capsule's cover sphere's radius is at most √1.25 times
+        # the geom's (a box's: test_a_box_is_held_by_the_spheres_of_its_cells).
+        if kind != BOX:
+            assert radii[mine].max() <= 1.12 * size[0] + 1e-9
+        boxes += kind == BOX
+        # Within the slot's bounding radius, as the kernel's rounding allowance assumes.
+        bounding = scene.slot_radius[0, s] * (1.0 + 1e-12) + 1e-12
+        assert np.all(np.linalg.norm(centres[mine] - scene.slot_pos[0, s], axis=1) <= bounding)
+        assert np.all(radii[mine] <= bounding)
         held += 1
     assert held >= 6
+    assert (boxes > 0) == (arm_name in BOX_ARMS)
+
+
+@pytest.mark.parametrize(("half", "cuts"), [((0.1, 0.1, 0.1), (2, 2, 2)),
+                                             ((0.01, 0.1, 0.1), (1, 4, 4)),
+                                             ((0.05, 0.05, 0.4), (1, 1, 8))])
+def test_a_box_is_held_by_the_spheres_of_its_cells(half, cuts):
+    # Derived by hand, of all cuts into at most 16 cells the spheres reaching least past
+    # the faces (radius less the cell's least half): the cube's eight cells reach 0.0366
+    # (one cell 0.0732, 2×2×3 0.0449); the plate's 4×4 0.0267 (1×3×5 0.0301, 1×2×8 0.0425);
+    # the link's eight along its length 0.0366 (seven 0.0407, nine 0.0395, 1×2×8 0.0500).
+    cells = box_cells(np.array(half))
+    assert len(cells) == np.prod(cuts) <= BOX_COVERS
+    cell = np.array(half) / np.array(cuts)
+    centres = np.array([c for c, _ in cells])
+    for axis in range(3):
+        expected = -half[axis] + cell[axis] * (2 * np.arange(cuts[axis]) + 1)
+        np.testing.assert_allclose(np.unique(centres[:, axis]), expected, rtol=0, atol=1e-15)
+    np.testing.assert_allclose([r for _, r in cells], np.linalg.norm(cell), rtol=1e-15)
 
 
 @pytest.mark.parametrize("arm_name", ARMS)
@@ -245,8 +281,10 @@ def test_a_contact_the_lanes_prove_is_one_the_scalar_witnesses_prove(arm_name):
     proven = steps == -2.0
     assert np.all(colliding[proven]) and np.all(how[proven] == BY_WITNESS)
     # Most contacts are proven in the lanes (the rest: skewers, cylinder rims, the
-    # points' scallops go to the scalar kernel).
-    assert proven.sum() > 0.8 * colliding.sum() > 0
+    # points' scallops go to the scalar kernel); a box has no contact points in the lanes
+    # (the scalar kernel's witnesses prove its contacts).
+    share = 0.8 if arm_name not in BOX_ARMS else 0.3
+    assert proven.sum() > share * colliding.sum() > 0
 
 
 def _rod_and_wall(wall_x: float) -> CollisionChecker:
@@ -283,10 +321,53 @@ def test_the_lanes_never_prove_a_skewering_rod_in_contact_where_mujoco_finds_non
         assert np.sum(crossing & (contacts == 0)) > 20
 
 
-def test_geoms_the_covers_cannot_hold_leave_the_filter_without_lanes():
-    # The anthropomorphic arm's housings are boxes: its filter checks with the scalar
-    # kernels alone (and its exactness suite passes there).
-    assert _checker("anthropomorphic")._filter.lanes.address == 0
+def test_an_ellipsoid_is_held_by_cells_within_its_bounding_sphere_and_checked_in_the_lanes():
+    # Its container is its box (0.1 × 0.1 × 0.01), its bounding radius the ellipsoid's
+    # (0.1), which the lanes' rounding allowance assumes holds every cover. By hand: 4×4×1
+    # cells would reach 0.0267 past the box but their corner cells' centres lie 0.106 from
+    # the centre; of the cuts within 0.1, 3×3×1 reaches least (0.0382; 2×7×1 0.0429, 3×3×2
+    # 0.0424): nine spheres of radius √(2·(0.1/3)² + 0.01²).
+    model = mujoco.MjModel.from_xml_string("""<mujoco><worldbody>
+        <geom name="wall" type="box" size="0.02 0.3 0.3" pos="0.6 0 0.5"/>
+        <body name="link" pos="0 0 0.5"><joint name="j" type="hinge" axis="0 0 1"/>
+        <geom name="disc" type="ellipsoid" size="0.1 0.1 0.01" pos="0.5 0 0"/>
+        </body></worldbody></mujoco>""")
+    checker, loop = (CollisionChecker(model, dof=1, backend=b) for b in ("compiled", "loop"))
+    lanes = checker._filter.lanes
+    start, centres, radii = lanes.covers
+    assert lanes.address != 0 and start.tolist() == [0, 0, 9]
+    grid = [-0.2 / 3, 0.0, 0.2 / 3]
+    expected = [[0.5 + x, y, 0.0] for x in grid for y in grid]
+    np.testing.assert_allclose(centres, expected, rtol=0, atol=1e-15)
+    radius = np.sqrt(2 * (0.1 / 3) ** 2 + 0.01**2)
+    np.testing.assert_allclose(radii, radius * (1 + 1e-12) + 1e-12, rtol=1e-15)  # rounding
+    q0 = np.linspace(-1.0, 1.0, 41)[:, None]
+    q1 = -q0[::-1]
+    before = checker._filter.counters[COUNTERS.index("lane samples")]
+    collides, first = checker.check_paths(q0, q1)
+    assert checker._filter.counters[COUNTERS.index("lane samples")] > before
+    loop_collides, loop_first = loop.check_paths(q0, q1)
+    np.testing.assert_array_equal(collides, loop_collides)
+    np.testing.assert_array_equal(first, loop_first)
+    assert 0 < collides.sum() < len(q0)
+
+
+def test_a_box_with_no_cut_within_the_bounding_radius_takes_the_bounding_sphere():
+    # Only a geom its bounding sphere holds asks for that (the cube's eight cells reach
+    # 0.0866 from its centre).
+    assert box_cells(np.array([0.1, 0.1, 0.1]), 0.05) == [((0.0, 0.0, 0.0), 0.05)]
+
+
+def test_a_scene_whose_measured_geom_has_no_covers_leaves_the_filter_without_lanes():
+    # Every moving geom MuJoCo allows has covers; were one without (a kind the lanes do
+    # not know), its pairs could not be bounded in the lanes.
+    scene = _checker("ur5e")._filter.scene
+    start = _checker("ur5e")._filter.lanes.covers[0]
+    assert usable(scene, start)
+    first = int(scene.pair_a[0])
+    owned = np.diff(start)
+    owned[first] = 0
+    assert not usable(scene, np.concatenate([[0], np.cumsum(owned)]))
 
 
 def test_without_a_c_compiler_the_lanes_say_so_and_stay_off(monkeypatch):
