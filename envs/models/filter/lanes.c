@@ -310,6 +310,107 @@ INLINE void cover_gaps(int W, const Scene *S, int64_t a, int64_t b, const float 
 #undef COVER_GAPS
 }
 
+/* axes[(3 k + i) L + l] = component i of slot s's axis k in the world (column k of its
+ * body's frame times the slot's rotation), in double precision. */
+INLINE void slot_axes(int W, const Scene *S, int64_t s, const double *restrict ml,
+                      double *restrict axes) {
+  const double *q = S->slot_rot + 9 * s;
+  if (S->slot_static[s]) {
+    for (int k = 0; k < 3; k++)
+      for (int i = 0; i < 3; i++)
+        for (int l = 0; l < W; l++) axes[(3 * k + i) * L + l] = q[3 * i + k];
+    return;
+  }
+  const double *restrict M = ml + S->slot_body[s] * 9 * L;
+  for (int k = 0; k < 3; k++)
+    for (int i = 0; i < 3; i++)
+      for (int l = 0; l < W; l++)
+        axes[(3 * k + i) * L + l] = M[3 * i * L + l] * q[k] + M[(3 * i + 1) * L + l] * q[3 + k]
+                                    + M[(3 * i + 2) * L + l] * q[6 + k];
+}
+
+/* e[l] = the extent of slot a's container about its centre along the unit axis
+ * (nx, ny, nz)[l], from a's axes ua (slot_axes): a box's sum_j h_j |n . u_j|, a
+ * sphere's r, a capsule's r + h |n . z|, a cylinder's r sqrt(1 - (n . z)^2) + h |n . z|. */
+INLINE void extent(int W, int64_t kind, const double *size, const double *restrict ua,
+                   const double *restrict nx, const double *restrict ny,
+                   const double *restrict nz, double *restrict e) {
+  for (int l = 0; l < W; l++) {
+    if (kind == BOX) {
+      double sum = 0.0;
+      for (int j = 0; j < 3; j++)
+        sum += size[j] * fabs(nx[l] * ua[3 * j * L + l] + ny[l] * ua[(3 * j + 1) * L + l]
+                              + nz[l] * ua[(3 * j + 2) * L + l]);
+      e[l] = sum;
+    } else if (kind == SPHERE) {
+      e[l] = size[0];
+    } else {
+      double c = nx[l] * ua[6 * L + l] + ny[l] * ua[7 * L + l] + nz[l] * ua[8 * L + l];
+      e[l] = size[1] * fabs(c)
+             + (kind == CAPSULE ? size[0] : size[0] * sqrt(MAX(1.0 - c * c, 0.0)));
+    }
+  }
+}
+
+/* exact[l] = the signed distance of slot a's container (any kind but unbounded) to the
+ * half-space below b's z = 0: the height of a's centre over b's plane less a's extent
+ * along its normal. The covers' spheres reach past a flat cylinder's faces, which a
+ * turntable holds at a constant height over the floor. In double precision, from the
+ * frames and centres the lanes computed (SLACK holds their rounding, as for the bounding
+ * spheres). */
+INLINE void plane_gaps(int W, const Scene *S, int64_t a, int64_t b, const double *restrict ml,
+                       const double *restrict wl, double *restrict exact) {
+  double ua[9 * L], ub[9 * L], e[L];
+  slot_axes(W, S, a, ml, ua);
+  slot_axes(W, S, b, ml, ub);
+  const double *nx = ub + 6 * L, *ny = ub + 7 * L, *nz = ub + 8 * L;
+  extent(W, S->slot_type[a], S->slot_size + 3 * a, ua, nx, ny, nz, e);
+  const double *restrict WA = wl + a * 3 * L, *restrict WB = wl + b * 3 * L;
+  const double *o = S->slot_pos + 3 * b;
+  int fixed = S->slot_static[b];
+  for (int l = 0; l < W; l++)
+    exact[l] = nx[l] * (WA[l] - (fixed ? o[0] : WB[l]))
+               + ny[l] * (WA[L + l] - (fixed ? o[1] : WB[L + l]))
+               + nz[l] * (WA[2 * L + l] - (fixed ? o[2] : WB[2 * L + l])) - e[l];
+}
+
+/* sat[l] = a lower bound of the distance between the box a (moving) and b's container (a
+ * sphere, capsule, box or cylinder): the largest gap between their extents along one of
+ * a's face normals, or one of b's for a box b. Along any unit axis n two convex sets lie
+ * at least |n . (c_b - c_a)| - e_a(n) - e_b(n) apart (extent). Exact for faces that face
+ * each other (a carriage beside its rails), where the covers' spheres reach past the
+ * box. In double precision, as plane_gaps. */
+INLINE void box_gaps(int W, const Scene *S, int64_t a, int64_t b, const double *restrict ml,
+                     const double *restrict wl, double *restrict sat) {
+  double ua[9 * L], ub[9 * L], d[3 * L], other[L];
+  slot_axes(W, S, a, ml, ua);
+  slot_axes(W, S, b, ml, ub);
+  const double *restrict WA = wl + a * 3 * L, *restrict WB = wl + b * 3 * L;
+  const double *o = S->slot_pos + 3 * b;
+  int fixed = S->slot_static[b];
+  for (int i = 0; i < 3; i++)
+    for (int l = 0; l < W; l++) d[i * L + l] = (fixed ? o[i] : WB[i * L + l]) - WA[i * L + l];
+  const double *ha = S->slot_size + 3 * a, *hb = S->slot_size + 3 * b;
+  int64_t kind = S->slot_type[b];
+  for (int l = 0; l < W; l++) sat[l] = -INFINITY;
+  for (int side = 0; side < (kind == BOX ? 2 : 1); side++) { /* a's face normals, b's */
+    const double *restrict axes = side ? ub : ua;
+    const double *half = side ? hb : ha;
+    for (int k = 0; k < 3; k++) {
+      const double *nx = axes + 3 * k * L, *ny = nx + L, *nz = ny + L;
+      /* along a face normal of a box its own extent is that half-size */
+      if (side)
+        extent(W, BOX, ha, ua, nx, ny, nz, other);
+      else
+        extent(W, kind, hb, ub, nx, ny, nz, other);
+      for (int l = 0; l < W; l++) {
+        double along = fabs(nx[l] * d[l] + ny[l] * d[L + l] + nz[l] * d[2 * L + l]);
+        sat[l] = MAX(sat[l], along - half[k] - other[l]);
+      }
+    }
+  }
+}
+
 /* contact[l] |= the inner shapes of pair k (a moving, with witness points) are closer than
  * the pair's contact distance, by the points (layout.inner, lanes.py: witness_points):
  * each point p of a's inner segment (its sphere: the centre) with a's inner radius r is a
@@ -447,12 +548,28 @@ INLINE void bound_lanes(const Scene *S, Block *B, const int W) {
     } else {
       for (int l = 0; l < W; l++) rounding[l] = ROUNDING * (EA[l] + EB[l] + radii);
     }
-    if (S->cover_start[a] == S->cover_start[a + 1] || S->slot_type[b] == UNBOUNDED) {
+    double margin = S->pair_margin[k];
+    int planar = S->slot_type[b] == PLANE && S->slot_type[a] != UNBOUNDED;
+    if (planar || (S->slot_type[a] == BOX && S->slot_type[b] != UNBOUNDED)) {
+      /* a half-space's distance exactly, a box's separation: where that holds every
+       * lane, no covers (nor any for a half-space: they cannot do better) */
+      double sat[L];
+      if (planar)
+        plane_gaps(W, S, a, b, ml, wl, sat);
+      else
+        box_gaps(W, S, a, b, ml, wl, sat);
+      int far = 1;
+      for (int l = 0; l < W; l++) {
+        gap[l] = MAX(gap[l], sat[l] - margin);
+        far &= gap[l] - SLACK >= rate[l] * steps[l];
+      }
+      if (far) continue;
+    }
+    if (planar || S->cover_start[a] == S->cover_start[a + 1] || S->slot_type[b] == UNBOUNDED) {
       for (int l = 0; l < W; l++) fine[l] = -INFINITY;
     } else {
       cover_gaps(W, S, a, b, wf, rf, cf, fine);
     }
-    double margin = S->pair_margin[k];
     int open = 0;
     for (int l = 0; l < W; l++) {
       double g = MAX(gap[l], ((double)fine[l] - rounding[l]) - margin) - SLACK;

@@ -17,7 +17,10 @@ The lanes' bounds hold each moving geom's container in spheres: on its axis, or 
 the cells of a box (:func:`covers`): a cover sphere's centre measured to the partner's
 container, less its radius, bounds the pair's distance from below; points on the moving
 geom's inner segment (:func:`witness_points`), measured to the partner's inner shape,
-bound it from above.
+bound it from above. A geom's distance to a half-space is measured exactly (its height
+over the plane less its extent along the normal), and a moving box's to any bounded
+partner also by their separation along the two shapes' face normals, where a cell's
+sphere reaches past the face (a carriage beside its rails).
 They are looser than the scalar kernel's (which measure the containers themselves and
 use each sample's local speeds), and much
 cheaper: structure-of-arrays, every inner loop one run of SIMD instructions over the
