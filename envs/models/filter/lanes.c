@@ -11,9 +11,11 @@
  * cylinder's axis, a sphere itself, about the cells of a box: "covers", lanes.py); the
  * distance of a cover sphere's centre to the partner's container (a point to a sphere,
  * capsule, box, cylinder or half-space, in closed form) less its radius bounds the pair's
- * distance from below, and so does the gap of the two bounding spheres. A pair closes at
- * most at its rate (m per unit t, as the scalar kernels use it), so a gap g beyond the
- * margin holds for g / rate.
+ * distance from below, and so does the gap of the two bounding spheres; a geom's height
+ * over a half-space less its extent along the normal is its distance (plane_gaps), and a
+ * moving box's separation along a face normal bounds its distance too (box_gaps). A pair
+ * closes at most at its rate (m per unit t, as the scalar kernels use it), so a gap g
+ * beyond the margin holds for g / rate.
  * Every gap is reduced by SLACK (1e-9 m) for the rounding of the double-precision
  * computations (forward kinematics and the polynomial sine and cosine stay within
  * 1e-12 m of the scalar kernels', tests/envs/models/filter/test_lanes.py).
