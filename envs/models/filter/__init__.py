@@ -65,7 +65,7 @@ from .kernels import (
     make_bound,
     path_steps,
 )
-from .lanes import LaneScene
+from .lanes import LaneScene, primitive_box_pairs
 from .layout import (
     DISTANCE_TOLERANCE,
     PER_SCENE,
@@ -99,7 +99,7 @@ class CompiledFilter:
         """Read ``scene`` (one scene) and ``exact`` (its (1, 10) row: MuJoCo's addresses,
         then the lanes', ``kernels.LANE_FUNCTION``) from now on."""
         self.scene, self._exact = scene, exact
-        self.lanes = LaneScene(scene)
+        self.lanes = LaneScene(scene, primitive_box_pairs(self._model, scene))
         exact[0, LANE_FUNCTION] = self.lanes.function if self.lanes.address else 0
         exact[0, LANE_SCENE] = self.lanes.address
         exact[0, LANE_WORK] = self.lanes.work_doubles

@@ -70,6 +70,10 @@ typedef struct {
   const uint8_t *pair_skewer;
   const int64_t *witness_start; const double *witness_offset, *witness_spacing;
   const double *slot_radius;
+  /* a pair of two primitive boxes: MuJoCo's collider reports some contacts outside the
+   * margin (docs/models.md, "Witnesses"), so only the bounding spheres, the test MuJoCo's
+   * own broad phase makes, prove it free */
+  const uint8_t *pair_spheres;
 } Scene;
 
 /* One call's lanes: start[nq][L], change[nq][L], t[L], cap[L], rates[npair][L] in;
@@ -551,8 +555,9 @@ INLINE void bound_lanes(const Scene *S, Block *B, const int W) {
       for (int l = 0; l < W; l++) rounding[l] = ROUNDING * (EA[l] + EB[l] + radii);
     }
     double margin = S->pair_margin[k];
+    int spheres = S->pair_spheres[k];
     int planar = S->slot_type[b] == PLANE && S->slot_type[a] != UNBOUNDED;
-    if (planar || (S->slot_type[a] == BOX && S->slot_type[b] != UNBOUNDED)) {
+    if (!spheres && (planar || (S->slot_type[a] == BOX && S->slot_type[b] != UNBOUNDED))) {
       /* a half-space's distance exactly, a box's separation: where that holds every
        * lane, no covers (nor any for a half-space: they cannot do better) */
       double sat[L];
@@ -567,7 +572,8 @@ INLINE void bound_lanes(const Scene *S, Block *B, const int W) {
       }
       if (far) continue;
     }
-    if (planar || S->cover_start[a] == S->cover_start[a + 1] || S->slot_type[b] == UNBOUNDED) {
+    if (spheres || planar || S->cover_start[a] == S->cover_start[a + 1]
+        || S->slot_type[b] == UNBOUNDED) {
       for (int l = 0; l < W; l++) fine[l] = -INFINITY;
     } else {
       cover_gaps(W, S, a, b, wf, rf, cf, fine);

@@ -48,6 +48,7 @@ import tempfile
 import warnings
 from pathlib import Path
 
+import mujoco
 import numpy as np
 
 from ...jit import cache_directory
@@ -237,7 +238,7 @@ _POINTERS = ("body_parent body_pos body_rot body_jntadr body_jntnum body_flags j
              "slot_pos slot_rot slot_type slot_size pair_a pair_b pair_margin pair_reach "
              "pair_kind pair_fixed cover_start cover_pos cover_radius slot_turned slot_inner "
              "slot_inner_size pair_contact pair_skewer witness_start witness_offset "
-             "witness_spacing slot_radius").split()
+             "witness_spacing slot_radius pair_spheres").split()
 
 
 class _Scene(ctypes.Structure):
@@ -253,7 +254,9 @@ class LaneScene:
     stack's, so that refreshed clutter is read in place) and at the covers. ``address`` is
     0 where the lanes cannot serve the model (:func:`usable`) or were not built."""
 
-    def __init__(self, scene: CompiledScene) -> None:
+    def __init__(self, scene: CompiledScene, spheres_only: np.ndarray | None = None) -> None:
+        """``spheres_only`` (P,) bool: pairs the lanes prove free by their bounding spheres
+        alone (:func:`primitive_box_pairs`; none if not given)."""
         self._arrays: list[np.ndarray] = []  # kept alive while the struct points at them
         self.address = self.function = self.paths_function = 0
         lib = library()
@@ -268,6 +271,8 @@ class LaneScene:
         fields = {name: getattr(scene, name) for name in _POINTERS if hasattr(scene, name)}
         fields["slot_static"] = scene.slot_static.astype(np.uint8)
         fields["pair_skewer"] = scene.pair_skewer.astype(np.uint8)
+        fields["pair_spheres"] = (np.zeros(len(scene.pair_a), dtype=np.uint8)
+                                  if spheres_only is None else spheres_only.astype(np.uint8))
         fields.update(cover_start=self.covers[0], cover_pos=self.covers[1],
                       cover_radius=self.covers[2], slot_turned=turned)
         fields.update(zip(("witness_start", "witness_offset", "witness_spacing"),
@@ -323,6 +328,17 @@ class LaneScene:
 #: The struct's fields that are per-scene arrays (a leading scene axis of length 1).
 _ROW = frozenset({"slot_pos", "slot_rot", "slot_size", "pair_fixed", "pair_reach",
                   "pair_kind", "slot_inner", "slot_inner_size", "slot_radius"})
+
+
+def primitive_box_pairs(model: mujoco.MjModel, scene: CompiledScene) -> np.ndarray:
+    """(P,) bool: the pair is two primitive boxes of ``model``. MuJoCo's box–box collider
+    misses some contacts inside the margin and reports some outside it (docs/models.md,
+    "Witnesses"), so no distance bound, however true, proves such a pair free as MuJoCo
+    decides it: the lanes prove it free by the bounding spheres alone, which is MuJoCo's
+    own broad phase. The models ``envs.models`` builds have none (their boxes are meshes,
+    the clutter's primitive boxes meet no other box)."""
+    boxes = model.geom_type[scene.slot_geom] == mujoco.mjtGeom.mjGEOM_BOX
+    return boxes[scene.pair_a] & boxes[scene.pair_b]
 
 
 def usable(scene: CompiledScene, cover_start: np.ndarray) -> bool:

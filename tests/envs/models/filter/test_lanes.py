@@ -10,13 +10,21 @@ import pytest
 
 from ikbranch_gym.envs.kinematics import make_arm
 from ikbranch_gym.envs.models import CollisionChecker, build_model
+from ikbranch_gym.envs.models.builders import compile_spec
 from ikbranch_gym.envs.models.filter import COUNTERS
 from ikbranch_gym.envs.models.filter.kernels import (
     BY_WITNESS,
     LANE_FUNCTION,
     bound_configurations,
 )
-from ikbranch_gym.envs.models.filter.lanes import BOX_COVERS, LANES, box_cells, library, usable
+from ikbranch_gym.envs.models.filter.lanes import (
+    BOX_COVERS,
+    LANES,
+    box_cells,
+    library,
+    primitive_box_pairs,
+    usable,
+)
 from ikbranch_gym.envs.models.filter.layout import BOX, CYLINDER, SPHERE
 
 #: Arms in their clutter: capsules and cylinders; with boxes (housings, prismatic links,
@@ -288,7 +296,8 @@ def test_a_contact_the_lanes_prove_is_one_the_scalar_witnesses_prove(arm_name):
 
 
 #: A box carriage (three slides, two hinges) with a disc on a third hinge, and a box
-#: shuttle on a slide, among a box rail, a post, a bar, a ball and the floor.
+#: shuttle on a slide, among a box rail, a post, a bar, a ball and the floor (geoms
+#: named as their collision shapes: ``compile_spec`` names each box's mesh after it).
 _CARRIAGE = """<mujoco><worldbody>
     <geom name="floor" type="plane" size="0 0 0.05"/>
     <geom name="rail" type="box" size="0.02 0.6 0.02" pos="0.3 0 0.3"/>
@@ -313,7 +322,10 @@ _CARRIAGE_RANGE = np.array([[-0.3, 0.3], [-0.35, 0.35], [-0.3, 0.1], [-np.pi, np
 
 
 def _carriage(backend: str = "compiled") -> CollisionChecker:
-    return CollisionChecker(mujoco.MjModel.from_xml_string(_CARRIAGE), dof=7, backend=backend)
+    # Its boxes compiled as the package compiles them: as their 8-vertex meshes, whose
+    # collider MuJoCo decides as the geometry does (primitive box pairs: below).
+    model = compile_spec(mujoco.MjSpec.from_string(_CARRIAGE))
+    return CollisionChecker(model, dof=7, backend=backend)
 
 
 def test_a_box_and_a_half_space_are_proven_free_only_where_they_are():
@@ -368,6 +380,37 @@ def test_a_carriage_beside_its_rail_is_proven_free_where_its_covers_cannot():
     steps = lanes.bound(rows, np.zeros_like(rows), np.zeros(LANES), np.zeros(LANES),
                         np.zeros((LANES, len(scene.pair_a))))[0]
     assert np.all(steps == 0.0)
+
+
+def test_two_primitive_boxes_are_proven_free_by_their_bounding_spheres_alone():
+    # MuJoCo's box–box collider reports these two primitive boxes in contact 0.0100 m
+    # apart (margin 0.01) where they lie 0.0112 m apart (mj_geomDistance): a true bound
+    # (cells, separation) would call them free. The lanes leave such a pair to the
+    # bounding spheres, MuJoCo's own broad phase, so every verdict stays MuJoCo's.
+    model = mujoco.MjModel.from_xml_string("""<mujoco><worldbody>
+        <geom type="box" size="0.076747 0.007381 0.126647"
+              pos="-0.01057812 -0.236703704 0.052470344"
+              quat="0.448971121 0.841397236 0.097466746 -0.284562572"/>
+        <body pos="-0.188101789 -0.147218548 0.110485935"
+              quat="0.53043568 -0.806170247 -0.255815136 -0.057324854">
+          <joint type="slide" axis="1 0 0"/>
+          <geom type="box" size="0.116791 0.054935 0.036506"/></body>
+        </worldbody></mujoco>""")
+    checker, loop = CollisionChecker(model, dof=1), CollisionChecker(model, dof=1, backend="loop")
+    assert primitive_box_pairs(checker.model, checker._filter.scene).tolist() == [True]
+    x = np.linspace(-0.03, 0.01, 81)[:, None]
+    expected = loop.collides(x)
+    assert expected[x[:, 0] == 0.0].all() and not expected.all()  # MuJoCo's contact above
+    np.testing.assert_array_equal(checker.collides(x), expected)
+    # Paths against MuJoCo at every grid sample (the loop backend's advancement skips
+    # samples by mj_geomDistance, which does not see the collider's contacts outside).
+    every = CollisionChecker(model, dof=1, backend="batch")
+    q0, q1 = np.full((64, 1), -0.02), np.linspace(0.0, 0.02, 64)[:, None]
+    collides, first = checker.check_paths(q0, q1)
+    expected, expected_first = every.check_paths(q0, q1)
+    np.testing.assert_array_equal(collides, expected)
+    np.testing.assert_array_equal(first, expected_first)
+    assert expected.all() and not loop.check_paths(q0, q1)[0].all()
 
 
 def _rod_and_wall(wall_x: float) -> CollisionChecker:
