@@ -297,7 +297,10 @@ def test_a_contact_the_lanes_prove_is_one_the_scalar_witnesses_prove(arm_name):
 
 #: A box carriage (three slides, two hinges) with a disc on a third hinge, and a box
 #: shuttle on a slide, among a box rail, a post, a bar, a ball and the floor (geoms
-#: named as their collision shapes: ``compile_spec`` names each box's mesh after it).
+#: named as their collision shapes: ``compile_spec`` names each box's mesh after it). The
+#: disc and the slab are turned in their bodies (a geom's own rotation enters its axes);
+#: the slab's lowest corner, 8.2 cm below its centre, slides from 2 cm into the floor to
+#: 6 cm above it.
 _CARRIAGE = """<mujoco><worldbody>
     <geom name="floor" type="plane" size="0 0 0.05"/>
     <geom name="rail" type="box" size="0.02 0.6 0.02" pos="0.3 0 0.3"/>
@@ -310,10 +313,10 @@ _CARRIAGE = """<mujoco><worldbody>
       <joint name="pitch" type="hinge" axis="0 1 0"/>
       <geom name="block" type="box" size="0.05 0.08 0.12"/>
       <body name="hub" pos="0 0 0.2"><joint name="roll" type="hinge" axis="1 0 0"/>
-        <geom name="disc" type="cylinder" size="0.1 0.01"/></body>
+        <geom name="disc" type="cylinder" size="0.1 0.01" euler="0 35 0"/></body>
     </body>
-    <body name="shuttle" pos="0 -0.5 0.15"><joint name="s" type="slide" axis="1 0 0"/>
-      <geom name="slab" type="box" size="0.1 0.05 0.05"/></body>
+    <body name="shuttle" pos="0 -0.5 0.102"><joint name="s" type="slide" axis="1 0 0.1"/>
+      <geom name="slab" type="box" size="0.1 0.05 0.05" euler="20 0 40"/></body>
     </worldbody></mujoco>"""
 #: The carriage's joint ranges drawn in the tests: the block reaches the rail, the floor,
 #: the ball, the bar and the shuttle, the disc the floor and the rail.
