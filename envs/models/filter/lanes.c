@@ -358,8 +358,8 @@ INLINE void extent(int W, int64_t kind, const double *size, const double *restri
   }
 }
 
-/* exact[l] = the signed distance of slot a's container (any kind but unbounded) to the
- * half-space below b's z = 0: the height of a's centre over b's plane less a's extent
+/* exact[l] = the signed distance of slot a's container (a sphere, capsule, box or
+ * cylinder) to the half-space below b's z = 0: the height of a's centre over b's plane less a's extent
  * along its normal. The covers' spheres reach past a flat cylinder's faces, which a
  * turntable holds at a constant height over the floor. In double precision, from the
  * frames and centres the lanes computed (SLACK holds their rounding, as for the bounding
@@ -556,7 +556,10 @@ INLINE void bound_lanes(const Scene *S, Block *B, const int W) {
     }
     double margin = S->pair_margin[k];
     int spheres = S->pair_spheres[k];
-    int planar = S->slot_type[b] == PLANE && S->slot_type[a] != UNBOUNDED;
+    /* a box or a cylinder over a half-space (a capsule's or a sphere's covers reach
+     * below it by little or nothing, and cost less) */
+    int planar = S->slot_type[b] == PLANE
+                 && (S->slot_type[a] == BOX || S->slot_type[a] == CYLINDER);
     if (!spheres && (planar || (S->slot_type[a] == BOX && S->slot_type[b] != UNBOUNDED))) {
       /* a half-space's distance exactly, a box's separation: where that holds every
        * lane, no covers (nor any for a half-space: they cannot do better) */
