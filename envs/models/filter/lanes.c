@@ -358,26 +358,23 @@ INLINE void extent(int W, int64_t kind, const double *size, const double *restri
   }
 }
 
-/* exact[l] = the signed distance of slot a's container (a sphere, capsule, box or
- * cylinder) to the half-space below b's z = 0: the height of a's centre over b's plane less a's extent
- * along its normal. The covers' spheres reach past a flat cylinder's faces, which a
- * turntable holds at a constant height over the floor. In double precision, from the
- * frames and centres the lanes computed (SLACK holds their rounding, as for the bounding
- * spheres). */
-INLINE void plane_gaps(int W, const Scene *S, int64_t a, int64_t b, const double *restrict ml,
-                       const double *restrict wl, double *restrict exact) {
-  double ua[9 * L], ub[9 * L], e[L];
+/* exact[l] = the signed distance of slot a's container (a box or a cylinder) to the
+ * half-space f of a pair (pair_fixed: a point of its plane, then its normal; a plane
+ * never moves): the height of a's centre over the plane less a's extent along the
+ * normal. The covers' spheres reach past a flat cylinder's faces, which a turntable
+ * holds at a constant height over the floor. In double precision, from the frames and
+ * centres the lanes computed (SLACK holds their rounding, as for the bounding spheres). */
+INLINE void plane_gaps(int W, const Scene *S, int64_t a, const double *f,
+                       const double *restrict ml, const double *restrict wl,
+                       double *restrict exact) {
+  double ua[9 * L], nx[L], ny[L], nz[L], e[L];
   slot_axes(W, S, a, ml, ua);
-  slot_axes(W, S, b, ml, ub);
-  const double *nx = ub + 6 * L, *ny = ub + 7 * L, *nz = ub + 8 * L;
+  for (int l = 0; l < W; l++) nx[l] = f[3], ny[l] = f[4], nz[l] = f[5];
   extent(W, S->slot_type[a], S->slot_size + 3 * a, ua, nx, ny, nz, e);
-  const double *restrict WA = wl + a * 3 * L, *restrict WB = wl + b * 3 * L;
-  const double *o = S->slot_pos + 3 * b;
-  int fixed = S->slot_static[b];
+  const double *restrict WA = wl + a * 3 * L;
   for (int l = 0; l < W; l++)
-    exact[l] = nx[l] * (WA[l] - (fixed ? o[0] : WB[l]))
-               + ny[l] * (WA[L + l] - (fixed ? o[1] : WB[L + l]))
-               + nz[l] * (WA[2 * L + l] - (fixed ? o[2] : WB[2 * L + l])) - e[l];
+    exact[l] = f[3] * (WA[l] - f[0]) + f[4] * (WA[L + l] - f[1]) + f[5] * (WA[2 * L + l] - f[2])
+               - e[l];
 }
 
 /* sat[l] = a lower bound of the distance between the box a (moving) and b's container (a
@@ -558,14 +555,14 @@ INLINE void bound_lanes(const Scene *S, Block *B, const int W) {
     int spheres = S->pair_spheres[k];
     /* a box or a cylinder over a half-space (a capsule's or a sphere's covers reach
      * below it by little or nothing, and cost less) */
-    int planar = S->slot_type[b] == PLANE
+    int planar = kind == FIXED_HALF_SPACE
                  && (S->slot_type[a] == BOX || S->slot_type[a] == CYLINDER);
     if (!spheres && (planar || (S->slot_type[a] == BOX && S->slot_type[b] != UNBOUNDED))) {
       /* a half-space's distance exactly, a box's separation: where that holds every
        * lane, no covers (nor any for a half-space: they cannot do better) */
       double sat[L];
       if (planar)
-        plane_gaps(W, S, a, b, ml, wl, sat);
+        plane_gaps(W, S, a, f, ml, wl, sat);
       else
         box_gaps(W, S, a, b, ml, wl, sat);
       int far = 1;
