@@ -67,6 +67,14 @@ def _surface(kind: int, size: np.ndarray, rng: np.random.Generator, count: int) 
     return np.vstack([side, cap])
 
 
+def _within_step(q0, q1, n, mid, steps, lane):
+    """The grid samples of lane ``lane``'s path (``q0`` → ``q1`` in ``n`` steps) within its
+    proven step of its sample ``mid``."""
+    reach = int(steps[lane] * n[lane])
+    grid = np.arange(max(mid[lane] - reach, 0), min(mid[lane] + reach, n[lane]) + 1)
+    return q0[lane] + (grid / n[lane])[:, None] * (q1[lane] - q0[lane])
+
+
 @pytest.mark.parametrize("arm_name", ARMS)
 def test_the_covers_hold_every_moving_container(arm_name):
     scene = _checker(arm_name)._filter.scene
@@ -163,10 +171,7 @@ def test_a_step_the_lanes_prove_is_free_at_every_grid_sample_within_it(arm_name)
                 unproved += 1
                 continue
             proved += 1
-            reach = int(steps[lane] * n[lane])
-            grid = np.arange(max(mid[lane] - reach, 0), min(mid[lane] + reach, n[lane]) + 1)
-            samples = q0[lane] + (grid / n[lane])[:, None] * (q1[lane] - q0[lane])
-            assert not loop.collides(samples).any()
+            assert not loop.collides(_within_step(q0, q1, n, mid, steps, lane)).any()
     assert proved > 0.2 * 12 * LANES and unproved > 0
 
 
@@ -357,9 +362,7 @@ def test_a_box_and_a_half_space_are_proven_free_only_where_they_are():
         rates = np.abs(q1 - q0) @ checker._filter.scene.pair_lever[0][:7]
         steps = lanes.bound(start, change, mid / n, rng.uniform(0.0, 0.3, LANES), rates)[0]
         for lane in np.flatnonzero(steps >= 0.0):
-            reach = int(steps[lane] * n[lane])
-            grid = np.arange(max(mid[lane] - reach, 0), min(mid[lane] + reach, n[lane]) + 1)
-            samples = q0[lane] + (grid / n[lane])[:, None] * (q1[lane] - q0[lane])
+            samples = _within_step(q0, q1, n, mid, steps, lane)
             assert not loop.collides(samples).any(), "a sample within a proven step collides"
     assert proved > 0.9 * free_total > 0
 
