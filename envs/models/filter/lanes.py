@@ -17,10 +17,10 @@ The lanes' bounds hold each moving geom's container in spheres: on its axis, or 
 the cells of a box (:func:`covers`): a cover sphere's centre measured to the partner's
 container, less its radius, bounds the pair's distance from below; points on the moving
 geom's inner segment (:func:`witness_points`), measured to the partner's inner shape,
-bound it from above. A geom's distance to a half-space is measured exactly (its height
-over the plane less its extent along the normal), and a moving box's to any bounded
-partner also by their separation along the two shapes' face normals, where a cell's
-sphere reaches past the face (a carriage beside its rails).
+bound it from above. A box's or a cylinder's distance to a half-space is measured exactly
+(its height over the plane less its extent along the normal), and a moving box's to any
+bounded partner also by their separation along the two shapes' face normals, where a
+cell's sphere reaches past the face (a carriage beside its rails).
 They are looser than the scalar kernel's (which measure the containers themselves and
 use each sample's local speeds), and much
 cheaper: structure-of-arrays, every inner loop one run of SIMD instructions over the
@@ -69,7 +69,7 @@ P_OWNER, P_LO, P_HI, P_MID = (P_PATH + k * LANES for k in (5, 7, 8, 9))
 COVER_SPACING = 0.5
 #: The most spheres that hold a box (:func:`box_cells`): its covers are looser than a
 #: capsule's (a cell's sphere reaches past the faces), denser ones cost more per sample
-#: than the near misses they would prove (docs/models.md, "Box covers").
+#: than the near misses they would prove (docs/models.md, "Boxes and half-spaces").
 BOX_COVERS = 16
 
 _SOURCE = Path(__file__).with_name("lanes.c")
