@@ -1,7 +1,8 @@
 """Environment throughput: steps/s of every registered id, next to Gymnasium's Reacher-v5.
 
     MUJOCO_GL=egl .venv/bin/python benchmarks/env_steps.py [--seconds 3] [--ids ID ...]
-                                                           [--num-envs 16] [--async]
+                                                           [--num-envs 16] [--threads 2]
+                                                           [--async]
 
 Single process, random *masked* actions (uniform over the valid branches) from a seeded
 generator; ``Reacher-v5`` takes ``action_space.sample()``. Resets are part of every loop.
@@ -20,6 +21,8 @@ Columns per id:
   warm-up; ``× Reacher`` over Reacher-v5's *single* env;
 - ``oracle``: the same vector env playing dp_oracle's plan (planned at each reset, the
   planning time not counted): full-length episodes, as a trained policy plays them;
+- ``threads``: both again with the vector env's sub-envs in ``--threads`` groups stepped
+  in as many threads (``threads=T``; 0 leaves the columns out);
 - ``--async``: ``vectorization_mode="async"`` with one and with two worker processes,
   masks from ``info["action_mask"]`` (no round trip), steps counted per sub-env, and the
   two workers' rate over the one worker's; beside it ``lockstep``, what that ratio
@@ -101,13 +104,14 @@ def _masked(masks: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 
 
 def vector(env_id: str, num_envs: int, seconds: float, warmup: float,
-           oracle: bool = False) -> float:
-    """Steps/s of the native vector env, every sub-env's step counted: random masked
-    actions, or with ``oracle`` dp_oracle's plans (their planning time not counted)."""
+           oracle: bool = False, threads: int = 1) -> float:
+    """Steps/s of the native vector env (its sub-envs in ``threads`` threads), every
+    sub-env's step counted: random masked actions, or with ``oracle`` dp_oracle's plans
+    (their planning time not counted)."""
     from ikbranch_gym.agents.dp import LazyLadder
 
     venv = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point",
-                        autoreset_mode="same_step")
+                        autoreset_mode="same_step", threads=threads)
     subs = venv.unwrapped.envs
     rng = np.random.default_rng(0)
     _, info = venv.reset(seed=0)
@@ -204,6 +208,8 @@ def main() -> None:
     parser.add_argument("--warmup", type=float, default=10.0, help="warm-up limit, seconds")
     parser.add_argument("--warmup-steps", type=int, default=20000, help="warm-up limit, steps")
     parser.add_argument("--num-envs", type=int, default=16, help="sub-envs of the vector env")
+    parser.add_argument("--threads", type=int, default=2,
+                        help="threads of the vector env's second columns (0: none)")
     parser.add_argument("--async", dest="asynchronous", action="store_true",
                         help="add the make_vec async columns (one and two workers)")
     parser.add_argument("--ids", nargs="*", default=None, help="ids (default: all)")
@@ -214,11 +220,15 @@ def main() -> None:
           f"/ {args.warmup_steps} steps; vector env of {args.num_envs}\n")
     reacher = single("Reacher-v5", args.seconds, args.warmup, args.warmup_steps)
     base = reacher["step+reset/s"]
+    threads = [1, args.threads] if args.threads > 1 else [1]
     print("| id | single: cold | in step | with resets | × Reacher | ms/reset | steps/episode "
           "| vector: with resets | × Reacher | oracle actions | × Reacher |"
+          + (f" {args.threads} threads: with resets | × Reacher | oracle actions "
+             "| × Reacher |" if len(threads) > 1 else "")
           + (" async ×1 | async ×2 | ×2 / ×1 | lockstep |" if args.asynchronous
              else ""))
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+          + ("---:|---:|---:|---:|" if len(threads) > 1 else "")
           + ("---:|---:|---:|---:|" if args.asynchronous else ""))
     for env_id in [*ids, "Reacher-v5"]:
         row = reacher if env_id == "Reacher-v5" else single(
@@ -227,11 +237,11 @@ def main() -> None:
                 f"| {row['step+reset/s']:,.0f} | {row['step+reset/s'] / base:.2f} "
                 f"| {row['ms/reset']:.2f} | {row['steps/episode']:.1f} |")
         if env_id in envs.ENV_SPECS:
-            rates = [vector(env_id, args.num_envs, args.seconds, args.warmup, oracle)
-                     for oracle in (False, True)]
+            rates = [vector(env_id, args.num_envs, args.seconds, args.warmup, oracle, count)
+                     for count in threads for oracle in (False, True)]
             line += "".join(f" {rate:,.0f} | {rate / base:.2f} |" for rate in rates)
         else:
-            line += " | | | |"
+            line += " | |" * 2 * len(threads)
         if args.asynchronous:
             one, two = (async_workers(env_id, workers, args.seconds, args.warmup)
                         for workers in (1, 2))

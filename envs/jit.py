@@ -24,9 +24,10 @@ from ikbranch_gym.envs.kinematics.compiled import cached_njit, writable_cache
 
 _ROOT = Path(__file__).resolve().parent
 
-#: The files and folders (relative to ``envs/``) whose kernels call each other.
+#: The files and folders (relative to ``envs/``) whose kernels call each other, and this
+#: one: the options the kernels are compiled with (numba's cache does not key on them).
 KERNEL_SOURCES = ("models/filter", "models/native.py", "models/scenes.py", "moves.py",
-                  "observations.py", "process.py", "stepping.py", "random_chain.py")
+                  "observations.py", "process.py", "stepping.py", "random_chain.py", "jit.py")
 
 
 def _sources() -> list[Path]:
@@ -52,10 +53,14 @@ def cache_directory() -> str | None:
 
 
 def njit(function: Callable | None = None, **options: Any) -> Any:
-    """``numba.njit(**options)``, cached in :func:`cache_directory` (``cached_njit``); usable
-    bare (``@njit``) or with options (``@njit(inline="always")``)."""
+    """``numba.njit(nogil=True, **options)``, cached in :func:`cache_directory`
+    (``cached_njit``); usable bare (``@njit``) or with options (``@njit(inline="always")``).
+
+    Without Python's lock: a vector env's groups of sub-envs step in threads of their own
+    (``envs.vector_env``), one group's kernels running while another's Python does."""
     if function is None:
         return functools.partial(njit, **options)
+    options.setdefault("nogil", True)
     directory = cache_directory()
     return cached_njit(function, None if directory is None else Path(directory), _ROOT,
                        **options)

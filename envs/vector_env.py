@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import itertools
 import numbers
+from concurrent.futures import ThreadPoolExecutor, wait
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -36,6 +39,15 @@ class IKBranchVectorEnv(VectorEnv):
     set's moves recur from episode to episode). Only a reset's task drawing runs per
     sub-env.
 
+    ## Threads
+    ``threads=T`` (≥ 2) splits the sub-envs into T contiguous groups, each with its own
+    batch, stacked filter and path memo, and steps the groups in T threads of this
+    process: the compiled stages release Python's lock, so one group's kernels run
+    while another's Python (a reset's task drawing) does. Every answer is the same as
+    with one thread, bit for bit; what it buys depends on how much of a step is compiled
+    (docs/training.md, "Threads": about 1.5× on UR5e-v4 and Anthropomorphic-v4 on two
+    cores, slower on ids whose steps are mostly Python).
+
     ## Spaces
     ``single_observation_space`` and ``single_action_space`` are the env's (``Box`` and
     ``Discrete(K)``); ``observation_space`` (N, size) and ``action_space``
@@ -61,8 +73,9 @@ class IKBranchVectorEnv(VectorEnv):
 
     ## Arguments
     ``num_envs`` (≥ 1), ``autoreset_mode`` (an ``AutoresetMode``, its value or its name:
-    ``"next_step"``, ``"same_step"``, ``"disabled"``), ``enforce_masks`` (default False), and every
-    argument of ``IKBranchEnv`` (its docstring), the same for all sub-envs.
+    ``"next_step"``, ``"same_step"``, ``"disabled"``), ``enforce_masks`` (default False),
+    ``threads`` (1 to ``num_envs``, default 1), and every argument of ``IKBranchEnv`` (its
+    docstring), the same for all sub-envs.
     """
 
     # Gymnasium's VectorEnv declares metadata a plain attribute (no ClassVar), as here.
@@ -73,18 +86,24 @@ class IKBranchVectorEnv(VectorEnv):
     autoreset_mode: AutoresetMode
     enforce_masks: bool
     n_branches: int
-    _stack: FilterStack
-    _episodes: EpisodeBatch
+    threads: int
+    _groups: list[_Group]
+    _pool: ThreadPoolExecutor | None
     _rows: np.ndarray
     _ended: np.ndarray
     _started: bool
 
     def __init__(self, num_envs: int = 1, autoreset_mode: str | AutoresetMode =
-                 AutoresetMode.NEXT_STEP, enforce_masks: bool = False, **kwargs: Any) -> None:
+                 AutoresetMode.NEXT_STEP, enforce_masks: bool = False, threads: int = 1,
+                 **kwargs: Any) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, numbers.Integral) or num_envs < 1:
             raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+        if (isinstance(threads, bool) or not isinstance(threads, numbers.Integral)
+                or not 1 <= threads <= num_envs):
+            raise ValueError(f"threads must be an integer from 1 to num_envs ({num_envs}), "
+                             f"got {threads!r}")
         mode = _autoreset_mode(autoreset_mode)
-        self.num_envs = int(num_envs)
+        self.num_envs, self.threads = int(num_envs), int(threads)
         self.autoreset_mode, self.enforce_masks = mode, bool(enforce_masks)
         #: The sub-envs (``IKBranchEnv``): their scenes, generators, ladders, renderers.
         self.envs = [IKBranchEnv(**kwargs) for _ in range(self.num_envs)]
@@ -97,12 +116,13 @@ class IKBranchVectorEnv(VectorEnv):
         self.action_space = batch_space(first.action_space, self.num_envs)
         self.observation_layout = first.observation_layout
         self.n_branches = first.arm.n_branches
-        # One kernel call checks the paths of every sub-env, each in its own scene.
-        self._stack = FilterStack([env.compiled_filter for env in self.envs])
-        self._episodes = EpisodeBatch(self.num_envs, first.n_waypoints, first.pricer,
-                                      first._observations, self._stack)
-        for row, env in enumerate(self.envs):  # each sub-env runs its episode in its row
-            env._episode = self._episodes.view(row, env.compiled_filter)
+        # Groups of nearly equal size, the larger first.
+        size, more = divmod(self.num_envs, self.threads)
+        starts = np.cumsum([0] + [size + (group < more) for group in range(self.threads)])
+        self._groups = [_Group(self.envs[start:stop], int(start))
+                        for start, stop in itertools.pairwise(starts.tolist())]
+        self._pool = (ThreadPoolExecutor(self.threads - 1, thread_name_prefix="ikbranch")
+                      if self.threads > 1 else None)
         self._rows = np.arange(self.num_envs)
         self._ended = np.zeros(self.num_envs, dtype=bool)
         self._started = False
@@ -123,13 +143,14 @@ class IKBranchVectorEnv(VectorEnv):
         if "reset_mask" in options:
             rows = np.flatnonzero(self._reset_mask(options.pop("reset_mask")))
         chosen = self._reset_options(options)
-        infos = self._begin(rows, [seeds[i] for i in rows], [chosen[i] for i in rows])
+        begun = self._run(lambda group, rows: group.reset(
+            rows, [seeds[group.start + i] for i in rows],
+            [chosen[group.start + i] for i in rows]), rows)
+        infos = _reset_infos(self.num_envs, rows, [info for part in begun for info in part])
         self._ended[rows] = False
-        self._episodes.survey(rows)
         self._started = True
-        masks = self._episodes.masks(self._rows)
-        _put(infos, "action_mask", rows, masks[rows])
-        return self._episodes.observation.copy(), infos
+        _put(infos, "action_mask", rows, self._masks(rows))
+        return self._observation(), infos
 
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
                                           dict[str, Any]]:
@@ -150,49 +171,42 @@ class IKBranchVectorEnv(VectorEnv):
                                    "with reset(options={'reset_mask': mask})")
             resetting = np.zeros(0, dtype=np.int64)
         stepping = np.flatnonzero(~self._ended) if len(resetting) else self._rows
-        if len(resetting):
-            infos = self._begin(resetting, [None] * len(resetting))
-        steps = self._episodes.advance(stepping, actions[stepping])
+        same_step = self.autoreset_mode == AutoresetMode.SAME_STEP
+        parts = self._run(lambda group, rows: group.step(
+            _within(resetting, group), rows, actions[group.start + rows], same_step), stepping)
+        steps = _joined([part.steps for part in parts])
         rewards[stepping], terminated[stepping] = steps.reward, steps.terminated
-        optimal = self._optimal_returns()  # of the episodes just stepped
+        optimal = (None if parts[0].optimal is None
+                   else np.concatenate([part.optimal for part in parts]))
         done = stepping[steps.terminated]
-        if self.autoreset_mode == AutoresetMode.SAME_STEP and len(done):
-            self._episodes.survey(done)  # their last observation
+        begun = [info for part in parts for info in part.begun]
+        if same_step and len(done):
             final_obs = np.full(n, None, dtype=object)
-            final_obs[done] = list(self._episodes.observation[done].copy())
-            masks = self._episodes.masks(done)
+            final_obs[done] = [row for part in parts for row in part.final_obs]
+            masks = np.concatenate([part.final_masks for part in parts])
             final_info = _step_infos(n, stepping, steps, masks_of=(done, masks),
                                      only=steps.terminated, optimal=optimal)
-            infos = self._begin(done, [None] * len(done))
+            infos = _reset_infos(n, done, begun)
             infos["final_obs"], infos["_final_obs"] = final_obs, _mask(n, done)
             infos["final_info"], infos["_final_info"] = final_info, _mask(n, done)
-            going = stepping[~steps.terminated]
             _merge(infos, _step_infos(n, stepping, steps, only=~steps.terminated,
                                       optimal=optimal))
             self._ended[done] = False
-            surveyed = np.concatenate([going, done])
         else:
+            if len(resetting):
+                infos = _reset_infos(n, resetting, begun)
             _merge(infos, _step_infos(n, stepping, steps, optimal=optimal))
             self._ended[resetting] = False
             self._ended[done] = True
-            surveyed = self._rows if len(resetting) else stepping
-        self._episodes.survey(surveyed)
-        masks = self._episodes.masks(self._rows)
-        _put(infos, "action_mask", self._rows, masks)
+        _put(infos, "action_mask", self._rows, self._masks(self._rows))
         truncated = np.zeros(n, dtype=bool)
-        return self._episodes.observation.copy(), rewards, terminated, truncated, infos
-
-    def _optimal_returns(self) -> np.ndarray | None:
-        """(N,) each sub-env's ``optimal_return`` (``optimal_return=True``), else None."""
-        if self.envs[0].optimal_return is None:
-            return None
-        return np.array([env.optimal_return for env in self.envs])
+        return self._observation(), rewards, terminated, truncated, infos
 
     def action_masks(self) -> np.ndarray:
         """(N, K) bool: each sub-env's valid branches now (``info["action_mask"]``)."""
         if not self._started:
             raise RuntimeError("call reset() before action_masks()")
-        return self._episodes.masks(self._rows)
+        return self._masks(self._rows)
 
     def render(self) -> tuple | None:
         """Each sub-env's frame (``render_mode="rgb_array"``), else None."""
@@ -223,6 +237,8 @@ class IKBranchVectorEnv(VectorEnv):
             setattr(env, name, value)
 
     def close_extras(self, **kwargs: Any) -> None:
+        if self._pool is not None:
+            self._pool.shutdown()
         for env in self.envs:
             env.close()
 
@@ -290,7 +306,7 @@ class IKBranchVectorEnv(VectorEnv):
         actions = array.astype(np.int64)
         if self.enforce_masks:
             live = np.flatnonzero(~self._ended)
-            masks = self._episodes.masks(live)
+            masks = self._masks(live)
             bad = np.flatnonzero(~masks[np.arange(len(live)), actions[live]])
             if len(bad):
                 i = int(live[bad[0]])
@@ -298,25 +314,133 @@ class IKBranchVectorEnv(VectorEnv):
                                  f"mask (valid branches {np.flatnonzero(masks[bad[0]]).tolist()})")
         return actions
 
+    def _run(self, work: Any, rows: np.ndarray) -> list[Any]:
+        """``work(group, its rows)`` for every group, each in its thread (``rows``: sorted
+        rows of the vector env; a group gets those it holds, numbered in the group): the
+        results in group order."""
+        groups = self._groups
+        if self._pool is None:
+            return [work(groups[0], rows)]
+        futures = [self._pool.submit(work, group, _within(rows, group)) for group in groups[1:]]
+        try:
+            first = work(groups[0], _within(rows, groups[0]))
+        finally:  # no group is left running when one fails
+            wait(futures)
+        return [first, *(future.result() for future in futures)]
+
+    def _masks(self, rows: np.ndarray) -> np.ndarray:
+        """(len(rows), K) the masks of sub-envs ``rows`` (sorted)."""
+        return np.concatenate([group.episodes.masks(_within(rows, group))
+                               for group in self._groups])
+
+    def _observation(self) -> np.ndarray:
+        """(N, size) every sub-env's observation (a copy)."""
+        return np.concatenate([group.episodes.observation for group in self._groups])
+
+
+@dataclass(frozen=True)
+class _Stepped:
+    """What :meth:`_Group.step` did, in the group's rows: the reset infos of the episodes
+    it began (those that ended on the step before, or with same-step autoreset on this
+    one), the steps paid, each sub-env's optimal return after them (None where not
+    asked), and with same-step autoreset the last observations and masks of the
+    episodes that ended."""
+
+    begun: list[dict[str, Any]]
+    steps: Steps
+    optimal: np.ndarray | None
+    final_obs: np.ndarray
+    final_masks: np.ndarray
+
+
+class _Group:
+    """Sub-envs ``envs`` of a vector env (its rows from ``start``) and what advances them
+    together: their scenes stacked in one filter, one batch of their episodes (rows
+    numbered in the group). Groups share nothing they change: each may run in a thread
+    of its own."""
+
+    def __init__(self, envs: list[IKBranchEnv], start: int) -> None:
+        first = envs[0]
+        self.envs, self.start, self.stop = envs, start, start + len(envs)
+        # One kernel call checks the paths of every sub-env, each in its own scene.
+        self.stack = FilterStack([env.compiled_filter for env in envs])
+        self.episodes = EpisodeBatch(len(envs), first.n_waypoints, first.pricer,
+                                     first._observations, self.stack)
+        for row, env in enumerate(envs):  # each sub-env runs its episode in its row
+            env._episode = self.episodes.view(row, env.compiled_filter)
+        self.rows = np.arange(len(envs))
+
+    def reset(self, rows: np.ndarray, seeds: list[int | None],
+              options: list[dict[str, int]]) -> list[dict[str, Any]]:
+        """New episodes in ``rows`` (each with its seed and checked reset options),
+        surveyed: their reset infos (without the masks)."""
+        begun = self._begin(rows, seeds, options)
+        self.episodes.survey(rows)
+        return begun
+
+    def step(self, resetting: np.ndarray, stepping: np.ndarray, actions: np.ndarray,
+             same_step: bool) -> _Stepped:
+        """Rows ``resetting`` begin new episodes, rows ``stepping`` take ``actions``; with
+        ``same_step``, those whose episodes end begin new ones at once. Every row left in
+        a new state is surveyed."""
+        begun = self._begin(resetting, [None] * len(resetting))
+        steps = self.episodes.advance(stepping, actions)
+        optimal = (None if self.envs[0].optimal_return is None
+                   else np.array([env.optimal_return for env in self.envs]))
+        done = stepping[steps.terminated]
+        final_obs = np.zeros((0, self.episodes.observation.shape[1]), dtype=np.float32)
+        final_masks = np.zeros((0, self.episodes.valid.shape[2]), dtype=bool)
+        if same_step and len(done):
+            self.episodes.survey(done)  # their last observation
+            final_obs = self.episodes.observation[done].copy()
+            final_masks = self.episodes.masks(done)
+            begun = self._begin(done, [None] * len(done))
+            surveyed = np.concatenate([stepping[~steps.terminated], done])
+        else:
+            surveyed = self.rows if len(resetting) else stepping
+        self.episodes.survey(surveyed)
+        return _Stepped(begun, steps, optimal, final_obs, final_masks)
+
     def _begin(self, rows: np.ndarray, seeds: list[int | None],
-               options: list[dict[str, int]] | None = None) -> dict[str, Any]:
-        """New episodes in sub-envs ``rows`` (each with its seed and checked reset
-        options): their batched reset infos (without the masks)."""
-        infos: dict[str, Any] = {}
-        n = self.num_envs
-        begun = begin_episodes([self.envs[row] for row in rows.tolist()], seeds, self._stack,
-                               rows, options)
-        # Each key's rows and values (keys in the order the rows first name them), then
-        # one _put a key.
-        columns: dict[str, tuple[list[int], list[Any]]] = {}
-        for row, info in zip(rows.tolist(), begun, strict=True):
-            for key, value in info.items():
-                named, values = columns.setdefault(key, ([], []))
-                named.append(row)
-                values.append(value)
-        for key, (named, values) in columns.items():
-            _put(infos, key, np.array(named), np.array(values), n=n)
-        return infos
+               options: list[dict[str, int]] | None = None) -> list[dict[str, Any]]:
+        if not len(rows):
+            return []
+        return begin_episodes([self.envs[row] for row in rows.tolist()], seeds, self.stack,
+                              rows, options)
+
+
+def _within(rows: np.ndarray, group: _Group) -> np.ndarray:
+    """The sorted ``rows`` of a vector env that are ``group``'s, numbered in it."""
+    first, stop = np.searchsorted(rows, [group.start, group.stop])
+    return rows[first:stop] - group.start
+
+
+def _joined(parts: list[Steps]) -> Steps:
+    """The steps of several groups as one, in group order."""
+    if len(parts) == 1:
+        return parts[0]
+    fields = {name: np.concatenate([getattr(part, name) for part in parts])
+              for name in ("waypoint", "branch", "reward", "travel", "time", "collision",
+                           "invalid", "terminated", "success")}
+    terms = {name: np.concatenate([part.terms[name] for part in parts])
+             for name in parts[0].terms}
+    return Steps(terms=terms, **fields)
+
+
+def _reset_infos(n: int, rows: np.ndarray, begun: list[dict[str, Any]]) -> dict[str, Any]:
+    """The reset infos ``begun`` of sub-envs ``rows``, batched (without the masks)."""
+    infos: dict[str, Any] = {}
+    # Each key's rows and values (keys in the order the rows first name them), then one
+    # _put a key.
+    columns: dict[str, tuple[list[int], list[Any]]] = {}
+    for row, info in zip(rows.tolist(), begun, strict=True):
+        for key, value in info.items():
+            named, values = columns.setdefault(key, ([], []))
+            named.append(row)
+            values.append(value)
+    for key, (named, values) in columns.items():
+        _put(infos, key, np.array(named), np.array(values), n=n)
+    return infos
 
 
 def _autoreset_mode(value: str | AutoresetMode) -> AutoresetMode:

@@ -49,6 +49,9 @@ def parser() -> argparse.ArgumentParser:
                    help="how the n_envs run: the natively batched vector env in this process "
                         "(native, the default), single envs in worker processes (subproc) or "
                         "one after another (dummy); the learner sees the same data")
+    p.add_argument("--env-threads", type=int, default=1,
+                   help="threads of the native vector env: its n_envs in this many groups "
+                        "stepped side by side (default 1; the same data whatever the number)")
     return p
 
 
@@ -64,7 +67,7 @@ def main(argv: list[str] | None = None) -> int:
         timesteps=args.timesteps, n_envs=args.n_envs, config=args.config,
         env_kwargs=args.env_kwargs, hyperparams=args.hyperparams, resume=args.resume,
         progress_bar=not args.no_progress, verbose=args.verbose,
-        torch_threads=args.torch_threads, vec_env=args.vec_env,
+        torch_threads=args.torch_threads, vec_env=args.vec_env, env_threads=args.env_threads,
     )
     try:
         train(run, argv)

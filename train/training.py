@@ -87,6 +87,9 @@ class RunConfig:
     #: single envs in worker processes; "dummy": the single envs one after another here.
     #: The three give the learner the same data (tested).
     vec_env: str = "native"
+    #: The native vector env's threads (``envs.vector_env``): its sub-envs in this many
+    #: groups stepped side by side; the same data whatever the number.
+    env_threads: int = 1
 
 
 #: The ways ``train`` runs its envs (``RunConfig.vec_env``).
@@ -94,15 +97,19 @@ VEC_ENVS = ("native", "subproc", "dummy")
 
 
 def vec_envs(kind: str, env_id: str, env_kwargs: dict[str, Any], n_envs: int,
-             seed: int) -> tuple[VecEnv, VecEnv]:
-    """The training envs (``n_envs``, sub-env i seeded ``seed + i``) and the one held-out
-    evaluation env, both of ``kind`` (one of ``VEC_ENVS``)."""
+             seed: int, threads: int = 1) -> tuple[VecEnv, VecEnv]:
+    """The training envs (``n_envs``, sub-env i seeded ``seed + i``; the native vector
+    env's in ``threads`` threads) and the one held-out evaluation env, both of ``kind``
+    (one of ``VEC_ENVS``)."""
     if kind not in VEC_ENVS:
         raise ValueError(f"vec_env must be one of {', '.join(map(repr, VEC_ENVS))}, got {kind!r}")
+    if threads != 1 and kind != "native":
+        raise ValueError(f"env threads ({threads}) are the native vector env's; vec_env "
+                         f"{kind!r} runs single envs")
     evaluation = held_out(env_id, env_kwargs)
     eval_seed = seed + VALIDATION_OFFSET
     if kind == "native":
-        return (make_native_vec_env(env_id, n_envs, env_kwargs, seed=seed),
+        return (make_native_vec_env(env_id, n_envs, env_kwargs, seed=seed, threads=threads),
                 make_native_vec_env(env_id, 1, evaluation, seed=eval_seed))
     vec_env_cls = SubprocVecEnv if n_envs > 1 and kind == "subproc" else DummyVecEnv
     train_env = make_vec_env(functools.partial(make_env, env_id, env_kwargs), n_envs=n_envs,
@@ -176,7 +183,8 @@ def train(run: RunConfig, argv: list[str] | None = None) -> BaseAlgorithm:
     # The evaluation env: the same VecEnv class as training (SB3 warns otherwise), one env:
     # masks and seeds; scenes from the held-out range where the id draws one per episode
     # (envs/seeds.py).
-    train_env, eval_env = vec_envs(run.vec_env, run.env_id, env_kwargs, n_envs, run.seed)
+    train_env, eval_env = vec_envs(run.vec_env, run.env_id, env_kwargs, n_envs, run.seed,
+                                   run.env_threads)
     if params.get("normalize_reward", False):
         # Returns span −20 (a clean run) to −300 (an early crash): scaling the reward by
         # its running std keeps the value targets small and, measured on ToolTransfer-v0,

@@ -26,14 +26,16 @@ from ikbranch_gym.envs.vector_env import IKBranchVectorEnv
 
 
 def make_native_vec_env(env_id: str, n_envs: int, env_kwargs: dict[str, Any] | None = None,
-                        seed: int | None = None) -> NativeVecEnv:
+                        seed: int | None = None, threads: int = 1) -> NativeVecEnv:
     """``n_envs`` sub-envs of ``env_id`` (with ``env_kwargs``) as an SB3 ``VecEnv``;
     ``seed``: sub-env i is seeded with ``seed + i`` at the first reset, as SB3's
-    ``make_vec_env`` seeds its envs."""
+    ``make_vec_env`` seeds its envs; ``threads``: the vector env's (its docstring, the
+    same data whatever the number)."""
     import ikbranch_gym.envs  # noqa: F401  (registers the ids)
 
     venv = gym.make_vec(env_id, num_envs=n_envs, vectorization_mode="vector_entry_point",
-                        autoreset_mode=AutoresetMode.SAME_STEP, **(env_kwargs or {}))
+                        autoreset_mode=AutoresetMode.SAME_STEP, threads=threads,
+                        **(env_kwargs or {}))
     # The vector entry point of every id makes an IKBranchVectorEnv.
     vec_env = NativeVecEnv(cast(IKBranchVectorEnv, venv))
     if seed is not None:

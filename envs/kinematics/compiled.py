@@ -438,7 +438,9 @@ def compiled_solve_poses() -> Callable:
         numba.extending.register_jitable(function)
     for helper in _FINISH_HELPERS:
         numba.extending.register_jitable(helper)
-    return cached_njit(solve_poses, cache_directory(), Path(__file__).parent)
+    # Without Python's lock, as the env's kernels (envs.jit): a vector env's groups
+    # solve their resets' poses in threads of their own.
+    return cached_njit(solve_poses, cache_directory(), Path(__file__).parent, nogil=True)
 
 
 def driver_arguments(arm: Arm) -> tuple[Any, ...]:

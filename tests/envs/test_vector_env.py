@@ -54,6 +54,51 @@ def test_sub_envs_are_the_single_envs_bit_for_bit(env_id, mode):
     sync.close()
 
 
+@pytest.mark.parametrize("mode", MODES, ids=lambda m: m.name.lower())
+@pytest.mark.parametrize("env_id", IDS)
+def test_threads_change_nothing(env_id, mode):
+    # Five sub-envs in groups of three and two, stepped in two threads, are the five in
+    # one group bit for bit: through autoresets, a partial reset whose rows lie in both
+    # groups, and actions outside the masks.
+    kwargs = {"num_envs": 5, "vectorization_mode": "vector_entry_point",
+              "autoreset_mode": mode, **FAST}
+    one, two = gym.make_vec(env_id, **kwargs), gym.make_vec(env_id, threads=2, **kwargs)
+    assert [len(group.envs) for group in two.unwrapped._groups] == [3, 2]
+    first = one.reset(seed=21)
+    assert data_equivalence(first, two.reset(seed=21), exact=True)
+    infos = first[1]
+    rng = np.random.default_rng(22)
+    ends = 0
+    for i in range(16 if "UR5e" not in env_id else 6):
+        if i == 3 and mode == AutoresetMode.SAME_STEP:
+            mask = np.array([False, True, False, True, False])
+            options = {"reset_mask": mask}
+            reset = one.reset(options=options)
+            assert data_equivalence(reset, two.reset(options=options), exact=True)
+            infos = reset[1]
+        actions = _actions(infos["action_mask"], rng, p_unmasked=0.1)
+        step = one.step(actions)
+        assert data_equivalence(step, two.step(actions), exact=True)
+        infos = step[4]
+        ends += int(step[2].sum())
+    np.testing.assert_array_equal(one.unwrapped.action_masks(), two.unwrapped.action_masks())
+    assert ends >= 1
+    one.close()
+    two.close()
+
+
+def test_kernels_run_without_pythons_lock():
+    # What lets groups overlap: every kernel the stages call releases the lock.
+    from ikbranch_gym.envs import random_chain, stepping
+    from ikbranch_gym.envs.kinematics import compiled
+    from ikbranch_gym.envs.models.filter import kernels
+
+    for kernel in (stepping.survey, stepping.advance, stepping.masks, random_chain._chain,
+                   kernels.bound_configurations, kernels.check_paths,
+                   compiled.compiled_solve_poses()):
+        assert kernel.targetoptions.get("nogil") is True, kernel
+
+
 def test_reset_masks_and_disabled_autoreset_are_gymnasiums():
     mode = AutoresetMode.DISABLED
     native, sync = _pair("IKBranch/Cartesian-v2", 4, mode, **FAST)
@@ -130,6 +175,9 @@ def test_bad_input_is_refused_with_its_name():
         IKBranchVectorEnv(num_envs=0)
     with pytest.raises(ValueError, match="autoreset_mode"):
         IKBranchVectorEnv(num_envs=1, autoreset_mode="sometimes")
+    for threads in (0, 4, 1.5, True):
+        with pytest.raises(ValueError, match=r"threads must be .* from 1 to num_envs \(3\)"):
+            IKBranchVectorEnv(num_envs=3, threads=threads, arm="cartesian")
     vec = IKBranchVectorEnv(num_envs=3, arm="anthropomorphic", **FAST)
     with pytest.raises(RuntimeError, match="reset"):
         vec.step(np.zeros(3, dtype=np.int64))

@@ -51,20 +51,24 @@ def test_native_vec_env_is_dummy_vec_env_of_monitored_envs(env_id):
 def test_training_on_either_gives_the_same_learner(tmp_path):
     # The learner sees identical data: MaskablePPO's parameters after training, its
     # held-out evaluations and its best model agree bit for bit.
+    # The native env's two sub-envs stepped in two threads too.
     models = {}
-    for kind in ("native", "dummy"):
+    for name, kind, threads in (("native", "native", 1), ("threads", "native", 2),
+                                ("dummy", "dummy", 1)):
         run = RunConfig(algo="maskable_ppo", env_id="IKBranch/Cartesian-v2", seed=0,
-                        run_dir=tmp_path / kind, timesteps=1024, progress_bar=False,
-                        vec_env=kind, hyperparams={"n_steps": 256, "batch_size": 128,
-                                                   "eval_freq": 256, "n_eval_episodes": 3})
-        models[kind] = train(run)
-    native, dummy = (list(models[k].policy.parameters()) for k in ("native", "dummy"))
-    assert all(np.array_equal(a.detach().numpy(), b.detach().numpy())
-               for a, b in zip(native, dummy, strict=True))
-    evaluations = [np.load(tmp_path / k / "evaluations.npz")["results"] for k in models]
-    np.testing.assert_array_equal(*evaluations)
-    assert (tmp_path / "native" / "best" / "best.json").read_text() == (
-        tmp_path / "dummy" / "best" / "best.json").read_text()
+                        run_dir=tmp_path / name, timesteps=1024, progress_bar=False,
+                        vec_env=kind, env_threads=threads,
+                        hyperparams={"n_steps": 256, "batch_size": 128, "eval_freq": 256,
+                                     "n_eval_episodes": 3})
+        models[name] = train(run)
+    dummy = list(models["dummy"].policy.parameters())
+    for name in ("native", "threads"):
+        assert all(np.array_equal(a.detach().numpy(), b.detach().numpy())
+                   for a, b in zip(models[name].policy.parameters(), dummy, strict=True))
+        np.testing.assert_array_equal(np.load(tmp_path / name / "evaluations.npz")["results"],
+                                      np.load(tmp_path / "dummy" / "evaluations.npz")["results"])
+        assert (tmp_path / name / "best" / "best.json").read_text() == (
+            tmp_path / "dummy" / "best" / "best.json").read_text()
 
 
 def test_the_adapter_wants_a_same_step_vector_env():
