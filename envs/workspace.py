@@ -70,7 +70,7 @@ def sample_joints(arm: Arm, n: int, rng: np.random.Generator,
 def sample_workspace(arm: Arm, n: int, rng: np.random.Generator,
                      limits: ArrayLike | None = None) -> np.ndarray:
     """(n, 3) positions of the output point for ``n`` uniform joint samples."""
-    return arm.fk(sample_joints(arm, n, rng, limits))[:, :3, 3]
+    return arm.positions(sample_joints(arm, n, rng, limits))
 
 
 def default_voxel_edge(points: np.ndarray) -> float:

@@ -80,13 +80,16 @@ class AnthropomorphicArm(Arm):
                 raise ValueError(f"anthropomorphic: {label} must be positive")
 
     def _fk(self, q: np.ndarray) -> np.ndarray:
+        rotation = rot_z(q[..., 0]) @ rot_x(q[..., 1] + q[..., 2]) @ wrist_rotation(
+            q[..., 3], q[..., 4], q[..., 5])
+        return homogeneous(rotation, self._position(q))
+
+    def _position(self, q: np.ndarray) -> np.ndarray:
         phi1, phi2, phi3 = q[..., 0], q[..., 1], q[..., 2]
         phi23 = phi2 + phi3
         reach = self.l2 * np.cos(phi2) + self.l3 * np.cos(phi23)
         height = self.l1 + self.l2 * np.sin(phi2) + self.l3 * np.sin(phi23)
-        position = np.stack([-reach * np.sin(phi1), reach * np.cos(phi1), height], -1)
-        rotation = rot_z(phi1) @ rot_x(phi23) @ wrist_rotation(q[..., 3], q[..., 4], q[..., 5])
-        return homogeneous(rotation, position)
+        return np.stack([-reach * np.sin(phi1), reach * np.cos(phi1), height], -1)
 
     def _kernel_parameters(self) -> np.ndarray:
         return np.array([self.l1, self.l2, self.l3])

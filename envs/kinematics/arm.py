@@ -210,6 +210,15 @@ class Arm(ABC):
             raise ValueError(f"q must have shape (..., {self.dof}) for {self.name}, got {q.shape}")
         return self._fk(q)
 
+    def positions(self, q: ArrayLike) -> np.ndarray:
+        """Position (…, 3) of the output frame for joint values ``q`` (…, dof): the
+        translation of :meth:`fk`, the same bits, without the rotation where the arm's
+        position has a formula of its own."""
+        q = as_float_array(q, "q")
+        if q.ndim < 1 or q.shape[-1] != self.dof:
+            raise ValueError(f"q must have shape (..., {self.dof}) for {self.name}, got {q.shape}")
+        return self._position(q)
+
     def ik(self, pose: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Every closed-form solution for ``pose`` (…, 4, 4), with every turn it allows.
 
@@ -328,6 +337,11 @@ class Arm(ABC):
     # ------------------------------------------------------------------------ for subclasses
     @abstractmethod
     def _fk(self, q: np.ndarray) -> np.ndarray: ...
+
+    def _position(self, q: np.ndarray) -> np.ndarray:
+        """:meth:`positions` of checked ``q``: the translation of ``_fk`` (arms whose
+        position has its own formula return that, and build ``_fk`` from it)."""
+        return self._fk(q)[..., :3, 3]
 
 
 

@@ -44,7 +44,10 @@ class CartesianArm(Arm):
     home: np.ndarray = field(default_factory=array_default((0.0, 0.0, 1.0, 0.0, 45 * _DEG, 0.0)))
 
     def _fk(self, q: np.ndarray) -> np.ndarray:
-        return homogeneous(wrist_rotation(q[..., 3], q[..., 4], q[..., 5]), q[..., :3])
+        return homogeneous(wrist_rotation(q[..., 3], q[..., 4], q[..., 5]), self._position(q))
+
+    def _position(self, q: np.ndarray) -> np.ndarray:
+        return q[..., :3].copy()
 
 def cartesian_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
     """The arm's closed form for one pose (``Arm._kernel``)."""

@@ -48,10 +48,12 @@ class CylindricalArm(Arm):
     home: np.ndarray = field(default_factory=array_default((0.8, 0.0, 0.6, 0.0, 45 * _DEG, 0.0)))
 
     def _fk(self, q: np.ndarray) -> np.ndarray:
+        rotation = rot_z(q[..., 1]) @ wrist_rotation(q[..., 3], q[..., 4], q[..., 5])
+        return homogeneous(rotation, self._position(q))
+
+    def _position(self, q: np.ndarray) -> np.ndarray:
         phi1, radial = q[..., 1], q[..., 2]
-        position = np.stack([-radial * np.sin(phi1), radial * np.cos(phi1), q[..., 0]], -1)
-        rotation = rot_z(phi1) @ wrist_rotation(q[..., 3], q[..., 4], q[..., 5])
-        return homogeneous(rotation, position)
+        return np.stack([-radial * np.sin(phi1), radial * np.cos(phi1), q[..., 0]], -1)
 
 def cylindrical_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
     """The arm's closed form for one pose (``Arm._kernel``)."""

@@ -48,9 +48,11 @@ class Cylindrical4Arm(Arm):
     home: np.ndarray = field(default_factory=array_default((0.6, 0.0, 0.5, 0.0)))
 
     def _fk(self, q: np.ndarray) -> np.ndarray:
+        return homogeneous(rot_z(q[..., 1]) @ rot_y(q[..., 3]), self._position(q))
+
+    def _position(self, q: np.ndarray) -> np.ndarray:
         phi1, radial = q[..., 1], q[..., 2]
-        position = np.stack([-radial * np.sin(phi1), radial * np.cos(phi1), q[..., 0]], -1)
-        return homogeneous(rot_z(phi1) @ rot_y(q[..., 3]), position)
+        return np.stack([-radial * np.sin(phi1), radial * np.cos(phi1), q[..., 0]], -1)
 
 def cylindrical4_kernel(m: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
     """The arm's closed form for one pose (``Arm._kernel``)."""

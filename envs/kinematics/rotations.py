@@ -50,10 +50,10 @@ def rot_z(angle: ArrayLike) -> np.ndarray:
 
 def homogeneous(rotation: np.ndarray, translation: np.ndarray) -> np.ndarray:
     """Assemble (…, 4, 4) transforms from (…, 3, 3) rotations and (…, 3) translations."""
-    rotation, translation = np.broadcast_arrays(rotation, translation[..., None])
-    out = np.zeros((*rotation.shape[:-2], 4, 4))
+    # Assignment broadcasts each into place (no broadcast copies made first).
+    out = np.zeros((*np.broadcast_shapes(rotation.shape[:-2], translation.shape[:-1]), 4, 4))
     out[..., :3, :3] = rotation
-    out[..., :3, 3] = translation[..., 0]
+    out[..., :3, 3] = translation
     out[..., 3, 3] = 1.0
     return out
 

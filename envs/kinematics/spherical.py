@@ -61,13 +61,16 @@ class SphericalArm(Arm):
             raise ValueError("spherical: the radial stroke s1 must be positive")
 
     def _fk(self, q: np.ndarray) -> np.ndarray:
+        rotation = rot_z(q[..., 0]) @ rot_x(q[..., 1]) @ wrist_rotation(q[..., 3], q[..., 4],
+                                                                         q[..., 5])
+        return homogeneous(rotation, self._position(q))
+
+    def _position(self, q: np.ndarray) -> np.ndarray:
         phi1, phi2, radial = q[..., 0], q[..., 1], q[..., 2]
         reach = radial * np.cos(phi2)
-        position = np.stack(
+        return np.stack(
             [-reach * np.sin(phi1), reach * np.cos(phi1), self.l1 + radial * np.sin(phi2)], -1
         )
-        rotation = rot_z(phi1) @ rot_x(phi2) @ wrist_rotation(q[..., 3], q[..., 4], q[..., 5])
-        return homogeneous(rotation, position)
 
     def _kernel_parameters(self) -> np.ndarray:
         return np.array([self.l1])

@@ -247,14 +247,14 @@ def draw_clutter(arm: Arm, seed: int, base: list[tuple[np.ndarray, float]],
     """
     rng = np.random.default_rng(seed)
     lower, upper = arm.joint_limits[:, 0], arm.joint_limits[:, 1]
-    poses = arm.fk(rng.uniform(lower, upper, size=(n_obstacles, arm.dof)))
+    centres = arm.positions(rng.uniform(lower, upper, size=(n_obstacles, arm.dof)))
     flat: list[float] = []  # (x, y, radius) of every disc
     for disc, radius in base:
         flat += disc.tolist() if type(disc) is np.ndarray else list(disc)
         flat.append(radius)
     discs = np.array(flat, dtype=np.float64).reshape(-1, 3)
     rows = np.empty((n_obstacles, 7))
-    count = _candidates(rng, np.ascontiguousarray(poses[:, :3, 3]), discs, rows)
+    count = _candidates(rng, np.ascontiguousarray(centres), discs, rows)
     obstacles = []
     for k, box, h0, h1, z, x, y in rows[:count].tolist():
         if box:

@@ -212,3 +212,15 @@ def test_revolute_branches_are_wrapped_only_where_the_limits_lie_within_pi(arm):
             assert np.all((values >= lower - 1e-9) & (values <= upper + 1e-9))
             if upper - lower > 2 * np.pi:
                 assert np.any(np.abs(values) > np.pi), "no branch uses the extra turn"
+
+
+def test_positions_are_the_translation_of_fk_bit_for_bit(arm):
+    # Clutter is drawn beside these points: an arm's own position formula (no rotation)
+    # must give fk's bits, or every episode's clutter would move.
+    rng = np.random.default_rng(3)
+    limits = arm.joint_limits
+    q = rng.uniform(limits[:, 0], limits[:, 1], size=(2, 5, arm.dof))
+    np.testing.assert_array_equal(arm.positions(q), arm.fk(q)[..., :3, 3])
+    np.testing.assert_array_equal(arm.positions(q[0, 0]), arm.fk(q[0, 0])[:3, 3])
+    with pytest.raises(ValueError, match="q must have shape"):
+        arm.positions(q[..., :-1])

@@ -116,6 +116,23 @@ def test_axis_quaternion_is_the_turn_about_the_axis(axis):
         np.testing.assert_allclose(quaternion_matrix(q), elementary(angle), atol=1e-15)
 
 
+def test_homogeneous_places_rotations_and_translations_broadcast():
+    rng = np.random.default_rng(6)
+    rotations = Rotation.random(N, random_state=rng).as_matrix()
+    translations = rng.normal(size=(N, 3))
+    cases = [(rotations, translations), (rotations[0], translations),
+             (rotations, translations[0]), (rotations[:, None], translations[None])]
+    for rotation, translation in cases:
+        shape = np.broadcast_shapes(rotation.shape[:-2], translation.shape[:-1])
+        every_r = np.broadcast_to(rotation, (*shape, 3, 3))
+        every_t = np.broadcast_to(translation, (*shape, 3))
+        expected = np.zeros((*shape, 4, 4))
+        for index in np.ndindex(shape):
+            expected[index] = np.block([[every_r[index], every_t[index][:, None]],
+                                        [np.zeros((1, 3)), np.ones((1, 1))]])
+        assert np.array_equal(homogeneous(rotation, translation), expected)
+
+
 def test_invert_pose_is_the_inverse_transform():
     rng = np.random.default_rng(5)
     rotations = Rotation.random(N, random_state=rng).as_matrix()
