@@ -64,6 +64,9 @@ class FramedArm:
     def fk(self, q: ArrayLike) -> np.ndarray:
         return self.frame.from_fk(self.arm.fk(q))
 
+    def positions(self, q: ArrayLike) -> np.ndarray:
+        return self.fk(q)[..., :3, 3]
+
     def ik(self, pose: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         return self.arm.ik(self.frame.to_fk(pose))
 

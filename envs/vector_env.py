@@ -45,8 +45,9 @@ class IKBranchVectorEnv(VectorEnv):
     process: the compiled stages release Python's lock, so one group's kernels run
     while another's Python (a reset's task drawing) does. Every answer is the same as
     with one thread, bit for bit; what it buys depends on how much of a step is compiled
-    (docs/training.md, "Threads": about 1.5× on UR5e-v4 and Anthropomorphic-v4 on two
-    cores, slower on ids whose steps are mostly Python).
+    (docs/training.md, "Threads of the vector env": with 16 sub-envs on two cores, two
+    threads ran UR5e-v4 1.57× and Anthropomorphic-v4 1.25× as fast, and 0.47–0.98× on
+    the ids whose steps are mostly Python).
 
     ## Spaces
     ``single_observation_space`` and ``single_action_space`` are the env's (``Box`` and
@@ -142,6 +143,9 @@ class IKBranchVectorEnv(VectorEnv):
         rows = self._rows
         if "reset_mask" in options:
             rows = np.flatnonzero(self._reset_mask(options.pop("reset_mask")))
+            if not self._started and len(rows) < self.num_envs:
+                raise ValueError("reset_mask: every sub-env must be reset first (the first "
+                                 "reset, and the one after a failed step, reset them all)")
         chosen = self._reset_options(options)
         begun = self._run(lambda group, rows: group.reset(
             rows, [seeds[group.start + i] for i in rows],
@@ -156,7 +160,8 @@ class IKBranchVectorEnv(VectorEnv):
                                           dict[str, Any]]:
         """Advance every sub-env by its action (see the class docstring)."""
         if not self._started:
-            raise RuntimeError("call reset() before step()")
+            raise RuntimeError("call reset() before step() (and after a step or reset that "
+                               "failed)")
         actions = self._check_actions(actions)
         n = self.num_envs
         rewards = np.zeros(n)
@@ -319,14 +324,21 @@ class IKBranchVectorEnv(VectorEnv):
         rows of the vector env; a group gets those it holds, numbered in the group): the
         results in group order."""
         groups = self._groups
-        if self._pool is None:
-            return [work(groups[0], rows)]
-        futures = [self._pool.submit(work, group, _within(rows, group)) for group in groups[1:]]
         try:
-            first = work(groups[0], _within(rows, groups[0]))
-        finally:  # no group is left running when one fails
-            wait(futures)
-        return [first, *(future.result() for future in futures)]
+            if self._pool is None:
+                return [work(groups[0], rows)]
+            futures = [self._pool.submit(work, group, _within(rows, group))
+                       for group in groups[1:]]
+            try:
+                first = work(groups[0], _within(rows, groups[0]))
+            finally:  # no group is left running when one fails
+                wait(futures)
+            return [first, *(future.result() for future in futures)]
+        except BaseException:
+            # Other sub-envs (another group's, or those before the failing one) may have
+            # moved on: nothing holds until every sub-env is reset.
+            self._started = False
+            raise
 
     def _masks(self, rows: np.ndarray) -> np.ndarray:
         """(len(rows), K) the masks of sub-envs ``rows`` (sorted)."""

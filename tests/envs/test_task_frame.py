@@ -43,6 +43,9 @@ def test_every_framed_branch_reaches_the_task_pose(arm_name):
         np.testing.assert_allclose(framed.fk(rows[ok]), np.broadcast_to(pose, (ok.sum(), 4, 4)),
                                    atol=1e-9)
     assert framed.reaches(poses).all() and framed.dof == arm.dof  # the rest is the arm's
+    # Positions are the TCP's in the task frame too, not the flange's in the base frame.
+    assert np.array_equal(framed.positions(q), poses[:, :3, 3])
+    assert not np.allclose(framed.positions(q), arm.positions(q))
 
 
 def test_a_placed_arm_with_a_tool_serves_the_cells_poses():

@@ -87,6 +87,44 @@ def test_threads_change_nothing(env_id, mode):
     two.close()
 
 
+def test_a_failed_step_needs_a_reset_and_a_reset_recovers():
+    # One group failing leaves the other's sub-envs moved on: the env refuses to step
+    # (or to reset only some sub-envs) until all are reset, and is then itself again.
+    kwargs = {"num_envs": 4, "vectorization_mode": "vector_entry_point", "threads": 2, **FAST}
+    vec, fresh = (gym.make_vec("IKBranch/Cartesian-v3", **kwargs) for _ in range(2))
+    _, infos = vec.reset(seed=5)
+    group = vec.unwrapped._groups[1]
+
+    def fail(*args, **kwargs):
+        raise RuntimeError("a task generator gave up")
+
+    group.step = fail
+    actions = infos["action_mask"].argmax(axis=1)
+    with pytest.raises(RuntimeError, match="gave up"):
+        vec.step(actions)
+    del group.step
+    with pytest.raises(RuntimeError, match=r"call reset\(\) before step\(\)"):
+        vec.step(actions)
+    with pytest.raises(ValueError, match="every sub-env must be reset first"):
+        vec.reset(options={"reset_mask": np.array([True, False, False, False])})
+    first = vec.reset(seed=9)
+    assert data_equivalence(first, fresh.reset(seed=9), exact=True)
+    rng = np.random.default_rng(10)
+    infos = first[1]
+    for _ in range(8):
+        actions = _actions(infos["action_mask"], rng, p_unmasked=0.0)
+        step = vec.step(actions)
+        assert data_equivalence(step, fresh.step(actions), exact=True)
+        infos = step[4]
+
+
+def test_the_first_reset_resets_every_sub_env():
+    vec = IKBranchVectorEnv(num_envs=2, arm="cartesian", **FAST)
+    with pytest.raises(ValueError, match="every sub-env must be reset first"):
+        vec.reset(seed=0, options={"reset_mask": np.array([True, False])})
+    vec.reset(seed=0, options={"reset_mask": np.array([True, True])})
+
+
 def test_kernels_run_without_pythons_lock():
     # What lets groups overlap: every kernel the stages call releases the lock.
     from ikbranch_gym.envs import random_chain, stepping
