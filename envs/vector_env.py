@@ -46,8 +46,8 @@ class IKBranchVectorEnv(VectorEnv):
     while another's Python (a reset's task drawing) does. Every answer is the same as
     with one thread, bit for bit; what it buys depends on how much of a step is compiled
     (docs/training.md, "Threads of the vector env": with 16 sub-envs on two cores, two
-    threads ran UR5e-v4 1.57× and Anthropomorphic-v4 1.25× as fast, and 0.47–0.98× on
-    the ids whose steps are mostly Python).
+    threads ran UR5e-v4 1.41–1.57× as fast with random actions, and the ids whose steps
+    are mostly Python about as fast as one thread or slower).
 
     ## Spaces
     ``single_observation_space`` and ``single_action_space`` are the env's (``Box`` and
@@ -69,7 +69,9 @@ class IKBranchVectorEnv(VectorEnv):
     the step that ended it, returning the new episode's first observation and the reset's
     info, with the last observation and step info in ``info["final_obs"]`` and
     ``info["final_info"]``; ``"disabled"`` leaves it to ``reset(options={"reset_mask":
-    mask})``. Infos are batched as ``SyncVectorEnv`` batches them (an array per key, and
+    mask})``. The first reset resets every sub-env, and so must the reset after a step or
+    reset that raised (some sub-envs may have moved on before it failed): until then
+    ``step`` refuses. Infos are batched as ``SyncVectorEnv`` batches them (an array per key, and
     ``info["_key"]`` marking the sub-envs that reported it).
 
     ## Arguments
