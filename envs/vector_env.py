@@ -5,7 +5,7 @@ from __future__ import annotations
 import itertools
 import numbers
 from concurrent.futures import ThreadPoolExecutor, wait
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
@@ -433,12 +433,11 @@ def _joined(parts: list[Steps]) -> Steps:
     """The steps of several groups as one, in group order."""
     if len(parts) == 1:
         return parts[0]
-    fields = {name: np.concatenate([getattr(part, name) for part in parts])
-              for name in ("waypoint", "branch", "reward", "travel", "time", "collision",
-                           "invalid", "terminated", "success")}
+    joined = {field.name: np.concatenate([getattr(part, field.name) for part in parts])
+              for field in fields(Steps) if field.name != "terms"}
     terms = {name: np.concatenate([part.terms[name] for part in parts])
              for name in parts[0].terms}
-    return Steps(terms=terms, **fields)
+    return Steps(terms=terms, **joined)
 
 
 def _reset_infos(n: int, rows: np.ndarray, begun: list[dict[str, Any]]) -> dict[str, Any]:
