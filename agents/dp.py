@@ -49,7 +49,9 @@ def cache_directory() -> Path | None:
 
 
 def _compiled(function: Callable) -> Any:
-    return compiled.cached_njit(function, cache_directory(), _HERE)
+    # Without Python's lock, as the env's kernels (envs.jit): a vector env's groups plan
+    # their resets' optimal returns in threads of their own.
+    return compiled.cached_njit(function, cache_directory(), _HERE, nogil=True)
 
 
 def ladder_q_tables(edges: Sequence[Edges], allowed: np.ndarray) -> list[np.ndarray]:

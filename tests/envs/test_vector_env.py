@@ -127,13 +127,14 @@ def test_the_first_reset_resets_every_sub_env():
 
 def test_kernels_run_without_pythons_lock():
     # What lets groups overlap: every kernel the stages call releases the lock.
+    from ikbranch_gym.agents import dp
     from ikbranch_gym.envs import random_chain, stepping
     from ikbranch_gym.envs.kinematics import compiled
     from ikbranch_gym.envs.models.filter import kernels
 
     for kernel in (stepping.survey, stepping.advance, stepping.masks, random_chain._chain,
                    kernels.bound_configurations, kernels.check_paths,
-                   compiled.compiled_solve_poses()):
+                   compiled.compiled_solve_poses(), dp._backward):
         assert kernel.targetoptions.get("nogil") is True, kernel
 
 
