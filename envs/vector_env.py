@@ -122,7 +122,7 @@ class IKBranchVectorEnv(VectorEnv):
         # Groups of nearly equal size, the larger first.
         size, more = divmod(self.num_envs, self.threads)
         starts = np.cumsum([0] + [size + (group < more) for group in range(self.threads)])
-        self._groups = [_Group(self.envs[start:stop], int(start))
+        self._groups = [_Group(self.envs[start:stop], int(start), self.threads == 1)
                         for start, stop in itertools.pairwise(starts.tolist())]
         self._pool = (ThreadPoolExecutor(self.threads - 1, thread_name_prefix="ikbranch")
                       if self.threads > 1 else None)
@@ -373,9 +373,11 @@ class _Group:
     numbered in the group). Groups share nothing they change: each may run in a thread
     of its own."""
 
-    def __init__(self, envs: list[IKBranchEnv], start: int) -> None:
+    def __init__(self, envs: list[IKBranchEnv], start: int, whole: bool) -> None:
         first = envs[0]
         self.envs, self.start, self.stop = envs, start, start + len(envs)
+        #: The group holds every sub-env of the vector env (one thread).
+        self.whole = whole
         # One kernel call checks the paths of every sub-env, each in its own scene.
         self.stack = FilterStack([env.compiled_filter for env in envs])
         self.episodes = EpisodeBatch(len(envs), first.n_waypoints, first.pricer,
@@ -425,6 +427,8 @@ class _Group:
 
 def _within(rows: np.ndarray, group: _Group) -> np.ndarray:
     """The sorted ``rows`` of a vector env that are ``group``'s, numbered in it."""
+    if group.whole:  # the one group: every row, numbered alike
+        return rows
     first, stop = np.searchsorted(rows, [group.start, group.stop])
     return rows[first:stop] - group.start
 
