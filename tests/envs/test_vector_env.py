@@ -33,22 +33,31 @@ def _actions(masks: np.ndarray, rng: np.random.Generator, p_unmasked: float) -> 
     return np.where(rng.random(len(masks)) < p_unmasked, anything, valid)
 
 
+def _step_alike(vec, other, infos, rng: np.random.Generator, steps: int,
+                p_unmasked: float) -> tuple[dict, int]:
+    """Step the native ``vec`` and ``other`` ``steps`` times with the same actions (from
+    the masks of ``infos``, then of each step's): every step's returns equal bit for bit,
+    and ``vec``'s ``action_masks()`` its info's masks. Returns the last infos and how many
+    episodes ended."""
+    ends = 0
+    for _ in range(steps):
+        actions = _actions(infos["action_mask"], rng, p_unmasked)
+        step = vec.step(actions)
+        assert data_equivalence(step, other.step(actions), exact=True)
+        infos = step[4]
+        np.testing.assert_array_equal(vec.unwrapped.action_masks(), infos["action_mask"])
+        ends += int(step[2].sum())
+    return infos, ends
+
+
 @pytest.mark.parametrize("mode", MODES, ids=lambda m: m.name.lower())
 @pytest.mark.parametrize("env_id", IDS)
 def test_sub_envs_are_the_single_envs_bit_for_bit(env_id, mode):
     native, sync = _pair(env_id, 3, mode, **FAST)
     first = native.reset(seed=11)
     assert data_equivalence(first, sync.reset(seed=11), exact=True)
-    infos = first[1]
-    rng = np.random.default_rng(12)
-    ends = 0
-    for _ in range(30 if "UR5e" not in env_id else 12):
-        actions = _actions(infos["action_mask"], rng, p_unmasked=0.1)
-        step = native.step(actions)
-        assert data_equivalence(step, sync.step(actions), exact=True)
-        infos = step[4]
-        np.testing.assert_array_equal(native.unwrapped.action_masks(), infos["action_mask"])
-        ends += int(step[2].sum())
+    _, ends = _step_alike(native, sync, first[1], np.random.default_rng(12),
+                          30 if "UR5e" not in env_id else 12, p_unmasked=0.1)
     assert ends >= 2  # autoresets were exercised
     native.close()
     sync.close()
@@ -66,21 +75,16 @@ def test_threads_change_nothing(env_id, mode):
     assert [len(group.envs) for group in two.unwrapped._groups] == [3, 2]
     first = one.reset(seed=21)
     assert data_equivalence(first, two.reset(seed=21), exact=True)
-    infos = first[1]
     rng = np.random.default_rng(22)
-    ends = 0
-    for i in range(16 if "UR5e" not in env_id else 6):
-        if i == 3 and mode == AutoresetMode.SAME_STEP:
-            mask = np.array([False, True, False, True, False])
-            options = {"reset_mask": mask}
-            reset = one.reset(options=options)
-            assert data_equivalence(reset, two.reset(options=options), exact=True)
-            infos = reset[1]
-        actions = _actions(infos["action_mask"], rng, p_unmasked=0.1)
-        step = one.step(actions)
-        assert data_equivalence(step, two.step(actions), exact=True)
-        infos = step[4]
-        ends += int(step[2].sum())
+    infos, ends = _step_alike(one, two, first[1], rng, 3, p_unmasked=0.1)
+    if mode == AutoresetMode.SAME_STEP:
+        options = {"reset_mask": np.array([False, True, False, True, False])}
+        reset = one.reset(options=options)
+        assert data_equivalence(reset, two.reset(options=options), exact=True)
+        infos = reset[1]
+    _, more = _step_alike(one, two, infos, rng, 13 if "UR5e" not in env_id else 3,
+                          p_unmasked=0.1)
+    ends += more
     np.testing.assert_array_equal(one.unwrapped.action_masks(), two.unwrapped.action_masks())
     assert ends >= 1
     one.close()
@@ -109,13 +113,7 @@ def test_a_failed_step_needs_a_reset_and_a_reset_recovers():
         vec.reset(options={"reset_mask": np.array([True, False, False, False])})
     first = vec.reset(seed=9)
     assert data_equivalence(first, fresh.reset(seed=9), exact=True)
-    rng = np.random.default_rng(10)
-    infos = first[1]
-    for _ in range(8):
-        actions = _actions(infos["action_mask"], rng, p_unmasked=0.0)
-        step = vec.step(actions)
-        assert data_equivalence(step, fresh.step(actions), exact=True)
-        infos = step[4]
+    _step_alike(vec, fresh, first[1], np.random.default_rng(10), 8, p_unmasked=0.0)
 
 
 def test_the_first_reset_resets_every_sub_env():
@@ -272,10 +270,4 @@ def test_a_cell_engineers_file_task_in_a_scene_file_is_batched_alike():
                                     autoreset_mode=AutoresetMode.SAME_STEP)
     first = native.reset(seed=3)
     assert data_equivalence(first, sync.reset(seed=3), exact=True)
-    infos = first[1]
-    rng = np.random.default_rng(5)
-    for _ in range(12):
-        actions = _actions(infos["action_mask"], rng, p_unmasked=0.0)
-        step = native.step(actions)
-        assert data_equivalence(step, sync.step(actions), exact=True)
-        infos = step[4]
+    _step_alike(native, sync, first[1], np.random.default_rng(5), 12, p_unmasked=0.0)
