@@ -46,7 +46,7 @@ class IKBranchVectorEnv(VectorEnv):
     while another's Python (a reset's task drawing) does. Every answer is the same as
     with one thread, bit for bit; what it buys depends on how much of a step is compiled
     (docs/training.md, "Threads of the vector env": with 16 sub-envs on two cores, two
-    threads ran UR5e-v4 1.41–1.57× as fast with random actions, and the ids whose steps
+    threads ran UR5e-v4 1.32–1.57× as fast with random actions, and the ids whose steps
     are mostly Python about as fast as one thread or slower).
 
     ## Spaces
